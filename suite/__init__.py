@@ -1,0 +1,1 @@
+"""hwyeval suite: catalog, SUMO world, runner, executors, metrics, Rerun logs, CLI."""
