@@ -1,0 +1,80 @@
+#!/usr/bin/env python3
+"""Set up hwyeval on a fresh machine (only Python 3.11 + pip needed), then act.
+
+    python3 bootstrap.py demo   # venv + install, then run catalogs/demo.toml end to end
+    python3 bootstrap.py test   # venv + install (with test extras, Chromium), then pytest
+
+The virtual environment lives in .venv; installation is skipped when
+pyproject.toml has not changed since the last one (a hash stamp in .venv).
+Chromium (for the HTML report test) comes from Debian's packages via apt-get
+when it is missing and we are root.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+VENV = ROOT / ".venv"
+PY = VENV / "bin" / "python"
+
+
+def sh(cmd: list[str], **kw: object) -> None:
+    print("+", " ".join(cmd), flush=True)
+    subprocess.run(cmd, check=True, **kw)  # type: ignore[call-overload]
+
+
+def ensure_venv(extras: str) -> None:
+    if not PY.exists():
+        venv.EnvBuilder(with_pip=True).create(VENV)
+    stamp = VENV / f".installed-{extras or 'base'}"
+    digest = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
+    if stamp.exists() and stamp.read_text() == digest:
+        return
+    sh([str(PY), "-m", "pip", "install", "-q", "--upgrade", "pip"])
+    target = f".[{extras}]" if extras else "."
+    sh([str(PY), "-m", "pip", "install", "-q", "-e", target], cwd=ROOT)
+    stamp.write_text(digest)
+
+
+def ensure_chromium() -> None:
+    if shutil.which("chromium") and shutil.which("chromedriver"):
+        return
+    if os.geteuid() != 0:
+        print("warning: chromium/chromedriver missing and not root: the browser test will fail; "
+              "install Debian's 'chromium chromium-driver'", file=sys.stderr)
+        return
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    sh(["apt-get", "update", "-q"], env=env)
+    sh(["apt-get", "install", "-y", "-q", "chromium", "chromium-driver"], env=env)
+
+
+def main(argv: list[str]) -> int:
+    action = argv[1] if len(argv) > 1 else "demo"
+    if action == "demo":
+        ensure_venv("baselines")
+        out = ROOT / "runs" / "demo"
+        code = subprocess.run([str(VENV / "bin" / "hwyeval"), "run", str(ROOT / "catalogs" / "demo.toml"),
+                               "--out", str(out), *argv[2:]]).returncode
+        print(f"demo finished with exit code {code}; open {out / 'report.html'}")
+        return code
+    if action == "test":
+        ensure_venv("test,baselines")
+        ensure_chromium()
+        code = subprocess.run([str(PY), "-m", "pytest", *argv[2:]], cwd=ROOT).returncode
+        if code == 5:
+            print("pytest collected no tests: that is a failure here", file=sys.stderr)
+            return 1
+        return code
+    print(__doc__, file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
