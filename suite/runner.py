@@ -41,7 +41,7 @@ from suite.obstacles import (
     to_frenet,
 )
 from suite.road_network import RoadNetwork
-from suite.world import EGO_ID, Neighbours, SumoWorld
+from suite.world import EGO_ID, Neighbours, SumoWorld, parse_ssm
 
 _COLLISION_GRACE_S = 0.5
 _END_OF_ROUTE_MARGIN_M = 30.0
@@ -209,6 +209,7 @@ def run_scenario(scenario: Any, out_dir: Path, options: RunOptions | None = None
         if world is not None:
             meta["sumo_collisions"] = list(world.collisions)
             world.close()
+            _attach_ssm(world, meta, recorder)
     meta["wall_s"] = time.perf_counter() - wall0
     meta["sim_time_s"] = float(recorder.rows[-1]["t_s"]) if recorder.rows else 0.0
     try:
@@ -218,6 +219,24 @@ def run_scenario(scenario: Any, out_dir: Path, options: RunOptions | None = None
         meta["error"] = (meta["error"] or "") + "\nwhile writing the trace:\n" + traceback.format_exc()
     _finish(run_dir, meta, options)
     return meta
+
+
+def _attach_ssm(world: SumoWorld, meta: dict[str, Any], rec: _Recorder) -> None:
+    """SUMO writes the SSM log on close: fill ``ssm_ttc_s`` per step from it."""
+    try:
+        times, ttcs, summary = parse_ssm(world.ssm_file)
+    except Exception:  # noqa: BLE001 - a malformed SSM log must not lose the run
+        meta["ssm"] = {"error": traceback.format_exc()}
+        return
+    meta["ssm"] = summary
+    if times.size == 0:
+        return
+    lookup = dict(zip(np.round(times, 6).tolist(), ttcs.tolist(), strict=True))
+    t_origin = meta.get("sumo_t_origin_s", 0.0)
+    for row in rec.rows:
+        value = lookup.get(round(row["t_s"] + t_origin, 6))
+        if value is not None:
+            row["ssm_ttc_s"] = value
 
 
 def _finish(run_dir: Path, meta: dict[str, Any], options: RunOptions) -> None:
@@ -290,6 +309,7 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
         world.move_ego(fx, fy, float(plant.state[2]))
         world.step()
     t_origin = world.time_s
+    meta["sumo_t_origin_s"] = t_origin
     meta["stalled"] = []
     nb = world.neighbours()
     for i in np.flatnonzero(nb.stalled):
@@ -376,7 +396,7 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
             "sumo_heading_rad": ego_sumo.heading_rad if ego_sumo is not None else math.nan,
             "min_gap_m": gap, "gap_vehicle": gap_id,
             "geom_collision": overlap, "sumo_collision": bool(hits),
-            "ssm_ttc_s": world.ssm_min_ttc_s(), "side": side, "side_reason": reason,
+            "ssm_ttc_s": math.nan, "side": side, "side_reason": reason,
             "n_obstacles": n_obs, "residual": diag.get("residual", math.nan),
             "fallback": bool(diag.get("fallback", 0.0)),
             "guard_fired": int(diag.get("guard_fired", 0)),

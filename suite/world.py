@@ -134,6 +134,7 @@ class SumoWorld:
         )
         lines.append('    <param key="has.ssm.device" value="true"/>')
         lines.append('    <param key="device.ssm.measures" value="TTC DRAC PET"/>')
+        lines.append('    <param key="device.ssm.trajectories" value="true"/>')
         lines.append(f'    <param key="device.ssm.file" value="{su.escape(str(self.work_dir / "ssm.xml"))}"/>')
         lines.append("  </vType>")
         lines.append('  <vType id="stalled" vClass="passenger" color="255,60,60" length="4.8" width="1.9"/>')
@@ -358,14 +359,10 @@ class SumoWorld:
         stalled = np.array([vid.startswith(STALLED_PREFIX) for vid in ids], dtype=bool)
         return Neighbours(ids, cx, cy, heading, spd, ln, wd, lane, edges, stalled)
 
-    def ssm_min_ttc_s(self) -> float:
-        """SUMO SSM device's minimum TTC so far for the ego (NaN if none reported)."""
-        try:
-            text = self._libsumo.vehicle.getParameter(EGO_ID, "device.ssm.minTTC")
-            value = float(text) if text not in ("", None) else math.nan
-        except Exception:  # noqa: BLE001 - device may be absent if the ego left
-            return math.nan
-        return value if value >= 0 else math.nan
+    @property
+    def ssm_file(self) -> Path:
+        """SUMO writes the SSM log when the simulation closes."""
+        return self.work_dir / "ssm.xml"
 
     def all_vehicle_ids(self) -> tuple[str, ...]:
         return tuple(self._libsumo.vehicle.getIDList())
@@ -383,3 +380,53 @@ class SumoWorld:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def parse_ssm(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """Read SUMO's SSM log of the ego: per-time minimum TTC over its conflicts, and a summary.
+
+    Returns (times_s (n,), ttc_s (n,), summary) where summary has ``min_ttc_s``,
+    ``max_drac_mps2``, ``conflicts``. TTC is only defined while a conflict is
+    tracked; missing values are NaN. An absent or empty file gives empty arrays.
+    """
+    import xml.etree.ElementTree as ET
+
+    if not path.is_file() or path.stat().st_size == 0:
+        return np.zeros(0), np.zeros(0), {"conflicts": 0}
+    root = ET.parse(path).getroot()
+    per_time: dict[float, float] = {}
+    min_ttc = math.inf
+    max_drac = -math.inf
+    n = 0
+    for conflict in root.iter("conflict"):
+        n += 1
+        span = conflict.find("timeSpan")
+        ttc_span = conflict.find("TTCSpan")
+        if span is not None and ttc_span is not None:
+            times = span.get("values", "").split()
+            ttcs = ttc_span.get("values", "").split()
+            for t_txt, v_txt in zip(times, ttcs, strict=False):
+                try:
+                    t, v = float(t_txt), float(v_txt)
+                except ValueError:
+                    continue
+                if v >= 0:
+                    per_time[t] = min(per_time.get(t, math.inf), v)
+        for tag, key in (("minTTC", "ttc"), ("maxDRAC", "drac")):
+            el = conflict.find(tag)
+            if el is None:
+                continue
+            try:
+                value = float(el.get("value", "nan"))
+            except ValueError:
+                continue
+            if key == "ttc" and value >= 0:
+                min_ttc = min(min_ttc, value)
+            elif key == "drac" and math.isfinite(value):
+                max_drac = max(max_drac, value)
+    times_arr = np.array(sorted(per_time))
+    ttc_arr = np.array([per_time[t] for t in times_arr]) if per_time else np.zeros(0)
+    summary: dict[str, Any] = {"conflicts": n,
+                               "min_ttc_s": min_ttc if math.isfinite(min_ttc) else None,
+                               "max_drac_mps2": max_drac if math.isfinite(max_drac) else None}
+    return times_arr, ttc_arr, summary
