@@ -364,6 +364,20 @@ class SumoWorld:
         """SUMO writes the SSM log when the simulation closes."""
         return self.work_dir / "ssm.xml"
 
+    def lane_context(self) -> list[Any]:
+        """Lanes of the edge the ego is on (the next route edge while inside a junction).
+
+        Each item is a :class:`suite.road_network.LaneInfo`: index (0 = rightmost),
+        width, centreline shape, allowed vehicle classes, shoulder flag. All lanes of
+        one SUMO edge run the same direction; an oncoming carriageway is another edge.
+        """
+        edge = str(self._libsumo.vehicle.getRoadID(EGO_ID))
+        if edge.startswith(":") or edge not in self.route:
+            idx = int(self._libsumo.vehicle.getRouteIndex(EGO_ID))
+            edge = self.route[min(max(idx, 0) + (1 if edge.startswith(":") else 0),
+                                  len(self.route) - 1)]
+        return [li for li in self.network.lane_info(self.route) if li.edge_id == edge]
+
     def all_vehicle_ids(self) -> tuple[str, ...]:
         return tuple(self._libsumo.vehicle.getIDList())
 
