@@ -574,6 +574,8 @@ _ABBREV = {
     "vehicles_per_hour": "vph",
     "speed_mps": "speed",
     "target_speed_mps": "vt",
+    # Sweeping the controller names variants by the controller alone: s3_stall__two_loop.
+    "controller": "",
 }
 _UNIT_SUFFIX = re.compile(r"_(m|s|mps|mps2|rad|radps|deg|hz|nm|kg|ms|kmh|n)$")
 
@@ -629,6 +631,8 @@ def format_sweep_value(value: Any, position: int = 0) -> str:
             text = repr(value)
     elif isinstance(value, str):
         return re.sub(r"[^a-z0-9_]", "_", value.lower())
+    elif isinstance(value, Mapping) and isinstance(value.get("name"), str) and len(value) == 1:
+        return format_sweep_value(value["name"])
     else:
         return f"v{position}"
     return text.replace("-", "m").replace("+", "").replace(".", "p").lower()

@@ -310,6 +310,20 @@ def test_sweep_same_short_is_disambiguated(net_dir: Path) -> None:
         "two__stalled0pos300__stalled1pos350", "two__stalled0pos300__stalled1pos450"]
 
 
+def test_sweeping_the_controller_names_variants_by_controller(net_dir: Path) -> None:
+    path = write(net_dir, """
+    [[scenario]]
+    name = "cmp"
+    net = "nets/test.net.xml"
+    ego = { lane = 1, pos_m = 20.0, speed_mps = 20.0 }
+    [scenario.sweep]
+    controller = ["lane_keep", { name = "sumo" }]
+    """)
+    cat = load(path)
+    assert cat.names() == ["cmp__lane_keep", "cmp__sumo"]
+    assert [s.controller.name for s in cat.scenarios] == ["lane_keep", "sumo"]
+
+
 @pytest.mark.sumo
 def test_example_fixture_catalog_on_bundled_nets() -> None:
     sumo_nets = pytest.importorskip("sumo_nets")
