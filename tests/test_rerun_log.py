@@ -1,0 +1,250 @@
+"""Rerun logs: written from synthetic run directories, read back with Rerun's own reader."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import rerun as rr
+from rerun.chunk import RrdReader
+from rerun_fixtures import make_run_dir, read_chunks, render_birdseye, rows_at_step
+
+from suite.rerun_blueprint import default_blueprint
+from suite.rerun_log import ENTITY_PATHS, lane_edges, recording_id_for, write_rrd
+from suite.viewer import failed_runs, open_logs, resolve_logs, view_command
+
+WORLD_PATHS = [
+    "/world/road/lanes", "/world/road/shoulders", "/world/road/centrelines",
+    "/world/reference_path", "/world/ego/box", "/world/ego/frame", "/world/vehicles",
+    "/world/stalled", "/world/ellipses", "/world/plan", "/world/preview",
+    "/world/preview_error", "/world/detection",
+]
+SCALAR_PATHS = [
+    "/safety/ttc_s", "/safety/min_gap_m", "/comfort/accel_mps2/long", "/comfort/accel_mps2/lat",
+    "/comfort/jerk_mps3/long", "/comfort/jerk_mps3/total", "/controller/speed_mps/actual",
+    "/controller/speed_mps/target", "/controller/lat_dev_m", "/controller/steer_deg/total",
+    "/controller/steer_deg/outer", "/controller/steer_deg/correction",
+    "/controller/torque_nm/total", "/controller/torque_nm/outer",
+    "/controller/torque_nm/correction", "/controller/residual", "/timing/step_ms/outer",
+    "/timing/step_ms/inner", "/timing/step_ms/controller", "/timing/step_ms/sumo",
+]
+STATIC_ONLY = ["/world/road/lanes", "/world/road/shoulders", "/world/road/centrelines",
+               "/world/reference_path", "/world/stalled", "/docs/scenario", "/docs/controller"]
+
+
+@pytest.fixture(autouse=True)
+def _strict_rerun() -> Any:
+    rr.set_strict_mode(True)  # a bad column raises instead of warning
+    yield
+
+
+@pytest.fixture(scope="module")
+def collision_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    root = tmp_path_factory.mktemp("runs")
+    run_dir = make_run_dir(root, collision=True, steps=300, n_traffic=2)
+    return run_dir, write_rrd(run_dir)
+
+
+def _rows(chunks: list[Any]) -> dict[tuple[str, bool], int]:
+    out: dict[tuple[str, bool], int] = defaultdict(int)
+    for c in chunks:
+        out[(c.entity_path, c.is_static)] += c.num_rows
+    return out
+
+
+def _events(chunks: list[Any]) -> list[tuple[int, str, str]]:
+    ev = []
+    for c in chunks:
+        if c.entity_path != "/events" or c.is_static:
+            continue
+        rb = c.to_record_batch()
+        for s, lv, tx in zip(rb.column("step").to_pylist(), rb.column("TextLog:level").to_pylist(),
+                             rb.column("TextLog:text").to_pylist(), strict=True):
+            ev.append((s, lv[0], tx[0]))
+    return sorted(ev, key=lambda e: e[0])  # stable: keeps logging order within a step
+
+
+def test_entity_paths_present(collision_run: tuple[Path, Path]) -> None:
+    _, rrd = collision_run
+    assert rrd.name == "run.rrd" and rrd.is_file()
+    paths = {c.entity_path for c in read_chunks(rrd)}
+    missing = [p for p in WORLD_PATHS + SCALAR_PATHS + ["/events", "/docs/scenario",
+                                                        "/docs/controller"] if p not in paths]
+    assert not missing, missing
+    assert set(ENTITY_PATHS.values()) <= paths | {"/world/ego/driven_path"}
+
+
+def test_one_ego_pose_per_step(collision_run: tuple[Path, Path]) -> None:
+    _, rrd = collision_run
+    steps: list[int] = []
+    frame_steps: list[int] = []
+    for c in read_chunks(rrd):
+        if c.is_static:
+            continue
+        rb = c.to_record_batch()
+        if c.entity_path == "/world/ego/box":
+            assert "LineStrips2D:strips" in rb.schema.names
+            steps += rb.column("step").to_pylist()
+            for strip_batch in rb.column("LineStrips2D:strips").to_pylist():
+                assert len(strip_batch) == 1 and len(strip_batch[0]) == 5  # closed box
+        elif c.entity_path == "/world/ego/frame":
+            frame_steps += rb.column("step").to_pylist()
+    assert sorted(steps) == list(range(300))
+    assert sorted(frame_steps) == list(range(300))
+
+
+def test_static_road_logged_once(collision_run: tuple[Path, Path]) -> None:
+    _, rrd = collision_run
+    rows = _rows(read_chunks(rrd))
+    for path in STATIC_ONLY:
+        assert rows[(path, True)] == 1, path
+        assert rows.get((path, False), 0) == 0, path
+    # per-step scalars are batched: one row per step, never static data rows
+    assert rows[("/safety/min_gap_m", False)] == 300
+    assert rows[("/controller/speed_mps/actual", False)] == 300
+
+
+def test_road_geometry(collision_run: tuple[Path, Path]) -> None:
+    _, rrd = collision_run
+    chunks = read_chunks(rrd)
+    lanes = rows_at_step(chunks, "/world/road/lanes", 0, "LineStrips2D:strips")
+    shoulders = rows_at_step(chunks, "/world/road/shoulders", 0, "LineStrips2D:strips")
+    assert len(lanes) == 6 and len(shoulders) == 2  # 3 driving lanes + 1 shoulder, 2 edges each
+    ys = sorted({round(s[0][1], 3) for s in lanes})
+    assert ys == [-1.75, 1.75, 5.25, 8.75]
+    left, right = lane_edges(np.array([[0.0, 0.0], [10.0, 10.0]]), 2.0)
+    assert np.allclose(np.linalg.norm(left - right, axis=1), 2.0)
+
+
+def test_vehicles_and_stalled(collision_run: tuple[Path, Path]) -> None:
+    run_dir, rrd = collision_run
+    chunks = read_chunks(rrd)
+    labels = rows_at_step(chunks, "/world/vehicles", 0, "LineStrips2D:labels")
+    assert labels and set(labels) <= {"veh0", "veh1"}
+    stalled = rows_at_step(chunks, "/world/stalled", 0, "LineStrips2D:labels")
+    assert stalled == ["stalled0 (stalled)"]
+    # obstacle ellipse only while the stalled car is within detection range ahead
+    assert rows_at_step(chunks, "/world/ellipses", 60, "LineStrips2D:strips")
+    assert not rows_at_step(chunks, "/world/ellipses", 5, "LineStrips2D:strips")
+    assert rows_at_step(chunks, "/world/ego/velocity", 60, "Arrows2D:labels") == [
+        "pass left: left lane free"]
+    assert not rows_at_step(chunks, "/world/ego/velocity", 5, "Arrows2D:labels")
+
+
+def test_recording_id_stable_and_seeded(tmp_path: Path) -> None:
+    a = write_rrd(make_run_dir(tmp_path / "a", seed=7, steps=40))
+    b = write_rrd(make_run_dir(tmp_path / "b", seed=7, steps=40))
+    c = write_rrd(make_run_dir(tmp_path / "c", seed=8, steps=40))
+    again = write_rrd(a.parent)
+    ids = [RrdReader(p).recordings()[0].recording_id for p in (a, b, c, again)]
+    assert ids[0] == ids[1] == ids[3] == recording_id_for("smoke", "stalled_pass", 7)
+    assert ids[2] != ids[0]
+    assert recording_id_for("other", "stalled_pass", 7) != ids[0]
+    assert recording_id_for("catalogs/smoke.yaml", "stalled_pass", 7) == ids[0]
+    assert write_rrd(make_run_dir(tmp_path / "d", seed=7, steps=40), catalog_name="x") and \
+        RrdReader(tmp_path / "d" / "stalled_pass" / "run.rrd").recordings()[0].recording_id \
+        == recording_id_for("x", "stalled_pass", 7)
+    assert RrdReader(a).recordings()[0].application_id == "hwyeval"
+    assert RrdReader(a).blueprints(), "default blueprint must be embedded"
+
+
+def test_events_for_collision(collision_run: tuple[Path, Path]) -> None:
+    _, rrd = collision_run
+    ev = _events(read_chunks(rrd))
+    by_text = {t: (s, lv) for s, lv, t in ev}
+    geom = [(s, lv) for s, lv, t in ev if t.startswith("COLLISION (geometry)")]
+    assert geom == [(100, "ERROR")]
+    sumo = [(s, lv) for s, lv, t in ev if t.startswith("COLLISION (SUMO")]
+    assert sumo == [(101, "ERROR")]
+    crit = [(s, t) for s, lv, t in ev if t.startswith("criterion violated: collision")]
+    assert crit and crit[0][0] == 100
+    assert any(t.startswith("criterion violated: max_abs_lat_acc") for _, _, t in ev)
+    assert any(t.startswith("fallback") and s == 60 and lv == "WARN" for s, lv, t in ev)
+    assert any("pass left" in t and lv == "INFO" for _, lv, t in ev)
+    final = [(s, lv, t) for s, lv, t in ev if t.startswith("status:")]
+    assert final == [(299, "ERROR", final[0][2])] and "FAIL" in final[0][2]
+    assert by_text  # sanity
+
+
+def test_pass_run_and_error_run(tmp_path: Path) -> None:
+    ok = write_rrd(make_run_dir(tmp_path, scenario="ok", steps=30))
+    ev = _events(read_chunks(ok))
+    assert ev[-1][1] == "INFO" and "PASS" in ev[-1][2]
+    assert not any("COLLISION" in t for _, _, t in ev)
+
+    err_dir = tmp_path / "boom"
+    err_dir.mkdir()
+    (err_dir / "run.json").write_text(json.dumps({
+        "scenario": "boom", "seed": 3, "catalog": "smoke", "status": "error",
+        "error": "Traceback...\nRuntimeError: SUMO died", "failed_criteria": []}))
+    rrd = write_rrd(err_dir)
+    ev = _events(read_chunks(rrd))
+    assert ev[-1][1] == "ERROR" and "SUMO died" in ev[-1][2]
+
+
+def test_blueprint_builds() -> None:
+    bp = default_blueprint(ego_start_xy=(0.0, 0.0), ego_heading_rad=np.pi,
+                           road_bounds=(0.0, 100.0, -5.0, 5.0))
+    assert bp is not None
+
+
+def test_write_cost_1500_steps_30_neighbours(tmp_path: Path) -> None:
+    run_dir = make_run_dir(tmp_path, steps=1500, n_traffic=30, neighbour_radius_m=None)
+    t0 = time.perf_counter()
+    rrd = write_rrd(run_dir)
+    elapsed = time.perf_counter() - t0
+    size_mb = rrd.stat().st_size / 1e6
+    print(f"\nwrite_rrd 1500 steps x 31 vehicles: {elapsed:.3f} s, {size_mb:.1f} MB")
+    rows = _rows(read_chunks(rrd))
+    assert rows[("/world/ego/box", False)] == 1500
+    assert rows[("/world/vehicles", False)] == 1500
+    assert elapsed < 10.0
+
+
+def test_birdseye_png_from_rrd(collision_run: tuple[Path, Path]) -> None:
+    _, rrd = collision_run
+    out = render_birdseye(rrd, 70, Path("/tmp/rerun_birdseye.png"))
+    from PIL import Image
+
+    with Image.open(out) as img:
+        assert img.size[0] > 500
+        pixels = np.asarray(img.convert("RGB")).reshape(-1, 3)
+        assert len(np.unique(pixels, axis=0)) > 5  # something was drawn
+
+
+# ------------------------------------------------------------------ viewer
+
+
+def test_view_command() -> None:
+    cmd = view_command([Path("a/run.rrd"), Path("b/run.rrd")])
+    assert cmd[:3] == [sys.executable, "-m", "rerun_cli"]
+    assert cmd[3:] == ["a/run.rrd", "b/run.rrd"]
+
+
+def test_failed_runs_and_open_logs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    make_run_dir(tmp_path, scenario="good", steps=20)
+    bad = make_run_dir(tmp_path, scenario="bad", steps=20, collision=False, status="fail",
+                       failed_criteria=["min_ttc_s=0.5<1.0"])
+    err = tmp_path / "err"
+    err.mkdir()
+    (err / "run.json").write_text(json.dumps({"scenario": "err", "status": "error"}))
+    assert failed_runs(tmp_path) == [bad, err]
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert open_logs([], failed_only_from=tmp_path) == 0
+    out = capsys.readouterr().out
+    assert "rerun_cli" in out and str(bad / "run.rrd") in out and str(err / "run.rrd") in out
+    assert (bad / "run.rrd").is_file()  # written on demand from the recorded arrays
+    assert "good" not in out
+
+    assert resolve_logs([tmp_path / "good"]) == [tmp_path / "good" / "run.rrd"]
+    assert len(resolve_logs([tmp_path])) == 3
+    assert open_logs([tmp_path / "nothing_here"]) == 1
