@@ -310,12 +310,8 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
         world.step()
     t_origin = world.time_s
     meta["sumo_t_origin_s"] = t_origin
-    meta["stalled"] = []
+    meta["stalled"] = world.stalled_vehicles()
     nb = world.neighbours()
-    for i in np.flatnonzero(nb.stalled):
-        meta["stalled"].append({"id": nb.ids[i], "x_m": nb.x_m[i], "y_m": nb.y_m[i],
-                                "heading_rad": nb.heading_rad[i], "length_m": nb.length_m[i],
-                                "width_m": nb.width_m[i], "lane_index": int(nb.lane_index[i])})
     state = state0.copy()
     prev_psi = state[2]
     prev_speed = float(state[3])

@@ -359,6 +359,23 @@ class SumoWorld:
         stalled = np.array([vid.startswith(STALLED_PREFIX) for vid in ids], dtype=bool)
         return Neighbours(ids, cx, cy, heading, spd, ln, wd, lane, edges, stalled)
 
+    def stalled_vehicles(self) -> list[dict[str, Any]]:
+        """Every stalled vehicle's box (centre, heading) and lane, wherever the ego is."""
+        v = self._libsumo.vehicle
+        present = set(v.getIDList())
+        out = []
+        for vid in self.stalled_ids:
+            if vid not in present:
+                continue
+            fx, fy = v.getPosition(vid)
+            heading = float(nav_deg_to_math_rad(v.getAngle(vid)))
+            length = float(v.getLength(vid))
+            out.append({"id": vid, "x_m": fx - 0.5 * length * math.cos(heading),
+                        "y_m": fy - 0.5 * length * math.sin(heading), "heading_rad": heading,
+                        "length_m": length, "width_m": float(v.getWidth(vid)),
+                        "lane_index": int(v.getLaneIndex(vid))})
+        return out
+
     @property
     def ssm_file(self) -> Path:
         """SUMO writes the SSM log when the simulation closes."""
