@@ -1,0 +1,97 @@
+"""junit.xml: one testcase per run, readable by CI JUnit parsers (Jenkins, GitLab, GitHub).
+
+``<testsuites>`` holds one ``<testsuite>`` per controller; each run is a ``<testcase
+name=scenario classname="controller.family" time=wall_s>``. A failed run carries
+``<failure message=... type="criteria">`` listing the failed criteria, an error run
+``<error type="error">`` with the traceback (run.json ``error`` or traceback.txt), a
+timeout ``<error type="timeout">``. Key metrics go to ``<system-out>``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from pathlib import Path
+
+from reports.tables import RunEval
+
+_INVALID_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]")
+KEY_METRICS = ("collision", "min_gap_m", "min_ttc_s", "progress_m", "offroad_s",
+               "max_abs_lat_acc_mps2", "max_abs_jerk_mps3", "rms_lat_dev_m", "step_ms_p99",
+               "deadline_misses")
+
+
+def xml_text(text: str) -> str:
+    """Text with characters XML 1.0 forbids removed."""
+    return _INVALID_XML.sub("", text)
+
+
+def _time(run: RunEval) -> str:
+    wall = run.meta.get("wall_s")
+    if isinstance(wall, int | float) and math.isfinite(wall) and wall >= 0:
+        return f"{float(wall):.3f}"
+    return "0"
+
+
+def _safe_name(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_\-]+", "_", text) or "_"
+
+
+def junit_tree(runs: Sequence[RunEval], suite_name: str = "hwyeval") -> ET.ElementTree:
+    """The JUnit XML tree for the runs."""
+    root = ET.Element("testsuites", name=suite_name)
+    by_controller: dict[str, list[RunEval]] = {}
+    for run in runs:
+        by_controller.setdefault(run.controller, []).append(run)
+    totals = {"tests": 0, "failures": 0, "errors": 0, "time": 0.0}
+    for controller in sorted(by_controller):
+        members = by_controller[controller]
+        failures = sum(1 for r in members if r.status == "fail")
+        errors = sum(1 for r in members if r.status in ("error", "timeout"))
+        time_s = sum(float(_time(r)) for r in members)
+        suite = ET.SubElement(root, "testsuite", name=f"{suite_name}.{controller}",
+                              tests=str(len(members)), failures=str(failures),
+                              errors=str(errors), skipped="0", time=f"{time_s:.3f}")
+        for run in members:
+            case = ET.SubElement(suite, "testcase", name=xml_text(run.scenario),
+                                 classname=f"{_safe_name(run.controller)}."
+                                           f"{_safe_name(run.family)}",
+                                 time=_time(run))
+            if run.status == "fail":
+                listing = "; ".join(run.failed) or "failed"
+                node = ET.SubElement(case, "failure", message=xml_text(listing), type="criteria")
+                node.text = xml_text("\n".join(run.failed))
+            elif run.status == "timeout":
+                first = run.error.strip().splitlines()[0] if run.error.strip() else "timeout"
+                node = ET.SubElement(case, "error", message=xml_text(first), type="timeout")
+                node.text = xml_text(run.error)
+            elif run.status == "error":
+                lines = run.error.strip().splitlines()
+                node = ET.SubElement(case, "error", message=xml_text(lines[-1] if lines
+                                                                     else "error"),
+                                     type="error")
+                node.text = xml_text(run.error)
+            if run.metrics:
+                out = ET.SubElement(case, "system-out")
+                out.text = xml_text("\n".join(
+                    f"{k}={run.metrics[k]:.6g}" for k in KEY_METRICS if k in run.metrics)
+                    + f"\nrun_dir={run.run_dir}")
+        totals["tests"] += len(members)
+        totals["failures"] += failures
+        totals["errors"] += errors
+        totals["time"] += time_s
+    root.set("tests", str(int(totals["tests"])))
+    root.set("failures", str(int(totals["failures"])))
+    root.set("errors", str(int(totals["errors"])))
+    root.set("time", f"{totals['time']:.3f}")
+    ET.indent(root)
+    return ET.ElementTree(root)
+
+
+def write_junit(runs: Sequence[RunEval], path: str | Path) -> Path:
+    """Write junit.xml; returns its path."""
+    path = Path(path)
+    junit_tree(runs).write(path, encoding="utf-8", xml_declaration=True)
+    return path
