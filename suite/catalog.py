@@ -1007,8 +1007,13 @@ class _Loader:
             add("criteria", "a table of name -> finite number", criteria)
             criteria = {}
         else:
+            from suite.metrics.criteria import Criteria
+
+            valid = Criteria.names()
             for k, v in criteria.items():
-                if not _is_number(v):
+                if k not in valid:
+                    add(f"criteria.{k}", f"a known criterion, one of {', '.join(valid)}", k)
+                elif not _is_number(v):
                     add(f"criteria.{k}", "a finite number", v)
 
         controller = self._controller(d.get("controller", _MISSING), add)

@@ -27,7 +27,7 @@ from suite.catalog import (
     sweep_shorts,
 )
 
-KNOWN = {"lane_keep", "sumo", "two_loop"}
+KNOWN = {"lane_keep", "sumo", "unregistered_ctrl"}
 DATA = Path(__file__).parent / "data" / "catalogs"
 
 # 3 lanes with a hard shoulder (lane 0) on e0, 3 lanes on e1, a drop to 2 lanes on e2.
@@ -49,7 +49,7 @@ controller = "lane_keep"
 duration_s = 10.0
 step_s = 0.05
 seed = 3
-criteria = { max_lateral_error_m = 1.0, min_ttc_s = 2.0 }
+criteria = { max_rms_lat_dev_m = 1.0, min_ttc_s = 2.0 }
 """
 
 GOOD = """
@@ -231,9 +231,9 @@ def test_good_catalog_defaults_and_resolution(net_dir: Path) -> None:
     ego = { lane = 2, pos_m = 0.0, speed_mps = 25, target_speed_mps = 30 }
     stalled = [ { lane = 1, pos_m = 300 }, { lane = 0, pos_m = 100, length_m = 10 } ]
     traffic = { vehicles_per_hour = 1200, lanes = [1, 2], speed_mps = 25 }
-    controller = { name = "two_loop", horizon = 20, weights = { q = 1.0 } }
+    controller = { name = "unregistered_ctrl", horizon = 20, weights = { q = 1.0 } }
     duration_s = 20
-    criteria = { min_ttc_s = 3.0, max_jerk_mps3 = 5 }
+    criteria = { min_ttc_s = 3.0, max_abs_jerk_mps3 = 5 }
     allow_shoulder = true
     record_radius_m = 80
     timeout_s = 60
@@ -246,16 +246,16 @@ def test_good_catalog_defaults_and_resolution(net_dir: Path) -> None:
     assert base.net_path == (net_dir / "nets" / "test.net.xml").resolve()
     assert base.controller == ControllerSpec("lane_keep", {})
     assert (base.duration_s, base.step_s, base.seed) == (10.0, 0.05, 3)
-    assert dict(base.criteria) == {"max_lateral_error_m": 1.0, "min_ttc_s": 2.0}
+    assert dict(base.criteria) == {"max_rms_lat_dev_m": 1.0, "min_ttc_s": 2.0}
     assert base.traffic is None and base.stalled == () and base.timeout_s is None
     assert base.ego.target_speed_mps == 20.0 and base.family == "base"
     assert explicit.route == ("e0", "e1")
     assert explicit.duration_s == 20.0 and explicit.allow_shoulder
-    assert dict(explicit.criteria) == {"max_lateral_error_m": 1.0, "min_ttc_s": 3.0,
-                                       "max_jerk_mps3": 5.0}
+    assert dict(explicit.criteria) == {"max_rms_lat_dev_m": 1.0, "min_ttc_s": 3.0,
+                                       "max_abs_jerk_mps3": 5.0}
     assert explicit.traffic == TrafficSpec(1200.0, 3, 25.0, (1, 2), 0.1)  # seed from scenario
     assert explicit.stalled[1].length_m == 10.0
-    assert explicit.controller.name == "two_loop"
+    assert explicit.controller.name == "unregistered_ctrl"
     assert explicit.controller.options_dict() == {"horizon": 20, "weights": {"q": 1.0}}
     assert (explicit.record_radius_m, explicit.timeout_s) == (80.0, 60.0)
     for sc in cat:
@@ -357,6 +357,7 @@ BAD_CASES = [
     ('timeout_s = -1', "scenario[0].timeout_s"),
     ('criteria = { min_ttc_s = "x" }', "scenario[0].criteria.min_ttc_s"),
     ('criteria = { min_ttc_s = false }', "scenario[0].criteria.min_ttc_s"),
+    ('criteria = { max_lateral_error = 1.0 }', "scenario[0].criteria.max_lateral_error"),
     ('criteria = 3', "scenario[0].criteria"),
     ('ego = { lane = 1, pos_m = 2.0 }', "scenario[0].ego.speed_mps"),
     ('ego = { lane = 1, pos_m = 2.0, speed_mps = -1 }', "scenario[0].ego.speed_mps"),
