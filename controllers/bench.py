@@ -1,0 +1,123 @@
+"""Timing benchmark of the two-loop controller on the plant-only closed loop.
+
+``run_benchmark`` drives :class:`TwoLoopController` on a straight road at 25 m/s
+past three stalled cars (one in the ego lane, two in the right lane, so that all
+obstacle slots are active while passing) twice:
+
+1. with every C/GMRES sub-update called and timed separately -> per-update times
+   (one update = k_max + 3 residual evaluations + GMRES + Euler + guard, compiled);
+2. normally (all sub-updates in one compiled call) -> the whole control step as
+   the runner sees it (``controller.step`` wall time: projection, outer loop,
+   inner loop with preview, command and logging arrays).
+
+The first ``warmup_steps`` steps (numba cache loading, first calls) are dropped.
+Percentiles p50/p95/p99/max in microseconds and the ratios p99/p50 are printed and
+returned. One run only; the numbers depend on the machine's load.
+"""
+
+from __future__ import annotations
+
+import platform
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from controllers.closed_loop_sim import simulate
+from controllers.obstacle_geometry import FrenetVehicle
+from controllers.protocol import Command, Observation, ScenarioContext
+from controllers.two_loop import TwoLoopController, TwoLoopParams
+
+
+class _TimedController:
+    """Wraps a controller and records the wall time of every ``step``."""
+
+    def __init__(self, inner: TwoLoopController) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self.simulated_by_sumo = inner.simulated_by_sumo
+        self.obstacle_policy = inner.obstacle_policy
+        self.step_times_s: list[float] = []
+
+    @property
+    def plan(self) -> Any:
+        return self.inner.plan
+
+    def reset(self, context: ScenarioContext) -> None:
+        self.inner.reset(context)
+
+    def step(self, observation: Observation) -> Command:
+        t0 = time.perf_counter()
+        cmd = self.inner.step(observation)
+        self.step_times_s.append(time.perf_counter() - t0)
+        return cmd
+
+    def parameters(self) -> Mapping[str, Any]:
+        return self.inner.parameters()
+
+
+def _stats(times_s: np.ndarray) -> dict[str, float]:
+    us = np.asarray(times_s) * 1e6
+    p50, p95, p99 = (float(np.percentile(us, q)) for q in (50, 95, 99))
+    return {"n": float(us.size), "p50_us": p50, "p95_us": p95, "p99_us": p99,
+            "max_us": float(us.max()), "mean_us": float(us.mean()),
+            "std_us": float(us.std()), "p99_over_p50": p99 / p50}
+
+
+def run_benchmark(options: Mapping[str, Any] | None = None, duration_s: float = 12.0,
+                  warmup_steps: int = 25, print_fn: Callable[[str], None] | None = print,
+                  ) -> dict[str, Any]:
+    """Run the benchmark; ``options`` are flat two-loop options (defaults otherwise)."""
+    opts = dict(options or {})
+    params = TwoLoopParams(**opts)
+    road = np.array([[0.0, 0.0], [2000.0, 0.0]])
+    cars = [FrenetVehicle(150.0, 0.0), FrenetVehicle(170.0, -3.5), FrenetVehicle(120.0, -3.5)]
+    results: dict[str, Any] = {"params": params.as_dict(), "machine": platform.processor()
+                               or platform.machine(), "python": platform.python_version()}
+    # 1) per-update timing
+    ctl = TwoLoopController(params)
+    orig_reset = ctl.reset
+
+    def reset_timed(context: ScenarioContext) -> None:
+        orig_reset(context)
+        outer = ctl.outer
+        if outer is not None and hasattr(outer, "time_each_subupdate"):
+            outer.time_each_subupdate = True
+
+    ctl.reset = reset_timed  # type: ignore[method-assign]
+    tr1 = simulate(ctl, road, cars, duration_s=duration_s, pass_side=1)
+    sub = np.asarray(getattr(ctl.outer, "subupdate_times_s", []), dtype=np.float64)
+    sub = sub[warmup_steps * params.sub_updates:]
+    # 2) whole control step
+    timed = _TimedController(TwoLoopController(params))
+    tr2 = simulate(timed, road, cars, duration_s=duration_s, pass_side=1)
+    steps = np.asarray(timed.step_times_s[warmup_steps:])
+    results["outer_update"] = _stats(sub) if sub.size else {}
+    results["control_step"] = _stats(steps)
+    results["outer_loop_per_step"] = _stats(tr2["outer_s"][warmup_steps:])
+    results["inner_loop_per_step"] = _stats(tr2["inner_s"][warmup_steps:])
+    results["residual_max"] = float(np.max(tr2["residual"]))
+    results["residual_median"] = float(np.median(tr2["residual"]))
+    results["fallbacks"] = int(np.sum(tr2["fallback"]))
+    results["guard_fired"] = int(np.sum(tr2["guard_fired"]))
+    results["min_ellipse_c"] = float(np.min(tr1["ellipse_c"]))
+    if print_fn is not None:
+        print_fn(f"two_loop benchmark: cost={params.cost} N={params.n_stages} "
+                 f"K={params.max_obstacles} k_max={params.k_max} "
+                 f"sub_updates={params.sub_updates}, {steps.size} steps")
+        for key in ("outer_update", "control_step", "outer_loop_per_step",
+                    "inner_loop_per_step"):
+            s = results[key]
+            if s:
+                print_fn(f"  {key:20s} p50 {s['p50_us']:8.1f} us  p95 {s['p95_us']:8.1f} us  "
+                         f"p99 {s['p99_us']:8.1f} us  max {s['max_us']:8.1f} us  "
+                         f"p99/p50 {s['p99_over_p50']:.2f}")
+        print_fn(f"  residual E: median {results['residual_median']:.3g}, "
+                 f"max {results['residual_max']:.3g}; fallbacks {results['fallbacks']}, "
+                 f"guard firings {results['guard_fired']}")
+    return results
+
+
+if __name__ == "__main__":
+    run_benchmark()

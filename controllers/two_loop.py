@@ -1,0 +1,357 @@
+"""The paper's two-loop controller (METHOD.md §1): SPMM NLMPC outer loop + preview inner loop.
+
+Per control period (``step``):
+
+1. measured state -> Frenet x0 = (s, y, theta_a) (projection with the previous s
+   as hint; theta_a = psi + atan2(v, u) unwrapped next to gamma(s));
+2. outer loop (C/GMRES by default, ``outer = "cgmres"``; any
+   :class:`controllers.outer_protocol.OuterSolver` via ``outer_factory``):
+   ``sub_updates`` continuation updates ending at the current state;
+3. inner loop (``controllers.inner_loop``): conversion (13)(14) + feed-forward,
+   STVM preview of Np steps, corrections (38)(39), sum (40)(41);
+4. a non-finite command (never expected) is replaced by lane-keeping braking and
+   flagged as a fallback.
+
+All parameters live in :class:`TwoLoopParams` (flat, with units), validated in
+``__post_init__``; :func:`make_two_loop` builds a controller from flat catalog
+options and raises :class:`ConfigError` naming the bad key.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from controllers.frenet import FrenetPath, _points_many, path_gamma, path_project_local
+from controllers.inner_loop import inner_step
+from controllers.outer_protocol import OuterPlan, OuterSolver
+from controllers.protocol import (
+    Command,
+    ConfigError,
+    Observation,
+    ObstaclePolicy,
+    ScenarioContext,
+)
+from controllers.registry import check_options
+from controllers.spmm_ocp import COSTS, OuterParams
+from controllers.vehicle_model import VehicleParams
+
+OuterFactory = Callable[[FrenetPath, OuterParams], OuterSolver]
+OUTERS = ("cgmres", "ipopt")
+
+
+@dataclass(frozen=True)
+class TwoLoopParams:
+    """Every parameter of the two-loop controller, flat, with units.
+
+    Outer loop (see :class:`controllers.spmm_ocp.OuterParams` for the maths):
+      outer: 'cgmres' | 'ipopt'; cost: 'J1' | 'J2' | 'J3'; horizon_s [s]; n_stages;
+      chebyshev (stage spacing); k_max; zeta_s [1/s] continuation gain; fd_step [-];
+      sub_updates per control period; c_z [1/s], zeta [-] barrier; c_y [1/(m² s)],
+      c_ydot [s/m²], c_sdot [s/m²], c_thetadot [s/rad²], c_theta [1/(rad² s)],
+      c_v [s/m²]; c_y_terminal [1/m²], c_e_terminal [1/rad²]; horizon_growth_rate
+      [1/s]; target_accel_mps2, target_decel_mps2 (OCP target-speed ramp);
+      z_guard [-]; obstacle_fade_s [s]; row_scaling (on/off); fallback_residual [-],
+      fallback_decel_mps2, fallback_hold_s [s].
+    Inner loop (see ``controllers.inner_loop``):
+      preview (on/off), n_preview (Np), preview_dt_s [s], lookahead_s [s];
+      k_ps [rad/rad], k_pv [N m s/m], k_pvc [N m/m], k_psc [rad/m],
+      k_isc [rad/(m s)], integral_limit_ms [m s]; feedforward (on/off).
+    Obstacle policy (``obstacle_policy``): detection_distance_m, rear_range_m,
+      margin_long_m, margin_lat_m, offset_m, max_obstacles (= OCP slots),
+      moving_obstacles.
+    """
+
+    outer: str = "cgmres"
+    cost: str = "J3"
+    horizon_s: float = 2.4
+    n_stages: int = 20
+    chebyshev: bool = False
+    k_max: int = 12
+    zeta_s: float = 50.0
+    fd_step: float = 1e-6
+    sub_updates: int = 4
+    c_z: float = 30.0
+    zeta: float = 0.2
+    c_y: float = 1.0
+    c_ydot: float = 1.0
+    c_sdot: float = 3.0
+    c_thetadot: float = 60.0
+    c_theta: float = 20.0
+    c_v: float = 1.0
+    c_y_terminal: float = 0.0
+    c_e_terminal: float = 2.0
+    horizon_growth_rate: float = 2.0
+    target_accel_mps2: float = 1.5
+    target_decel_mps2: float = 3.0
+    z_guard: float = 0.05
+    obstacle_fade_s: float = 0.5
+    row_scaling: bool = True
+    fallback_residual: float = 50.0
+    fallback_decel_mps2: float = 3.0
+    fallback_hold_s: float = 1.0
+    preview: bool = True
+    n_preview: int = 10
+    preview_dt_s: float = 0.05
+    lookahead_s: float = 0.15
+    k_ps: float = 1.0
+    k_pv: float = 1500.0
+    k_pvc: float = 500.0
+    k_psc: float = 0.1
+    k_isc: float = 0.05
+    integral_limit_ms: float = 5.0
+    feedforward: bool = True
+    detection_distance_m: float = 80.0
+    rear_range_m: float = 10.0
+    margin_long_m: float = 2.0
+    margin_lat_m: float = 0.4
+    offset_m: float = 0.3
+    max_obstacles: int = 3
+    moving_obstacles: bool = True
+
+    def __post_init__(self) -> None:
+        def bad(key: str, expected: str) -> ConfigError:
+            return ConfigError(f"controller.{key}", expected, getattr(self, key))
+
+        if self.outer not in OUTERS:
+            raise bad("outer", f"one of {OUTERS}")
+        if self.cost not in COSTS:
+            raise bad("cost", f"one of {COSTS}")
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.type in ("float",) and not (isinstance(v, int | float)
+                                             and not isinstance(v, bool) and math.isfinite(v)):
+                raise bad(f.name, "a finite number")
+            if f.type == "int" and not (isinstance(v, int) and not isinstance(v, bool)):
+                raise bad(f.name, "an integer")
+            if f.type == "bool" and not isinstance(v, bool):
+                raise bad(f.name, "true or false")
+        positive = ("horizon_s", "zeta_s", "fd_step", "c_z", "zeta", "preview_dt_s",
+                    "horizon_growth_rate", "target_accel_mps2", "target_decel_mps2", "z_guard",
+                    "fallback_residual", "fallback_decel_mps2", "k_ps", "obstacle_fade_s")
+        for key in positive:
+            if not getattr(self, key) > 0:
+                raise bad(key, "a number > 0")
+        nonneg = ("c_y", "c_ydot", "c_sdot", "c_thetadot", "c_theta", "c_v", "c_y_terminal",
+                  "c_e_terminal", "fallback_hold_s", "lookahead_s", "k_pv", "k_pvc", "k_psc",
+                  "k_isc", "integral_limit_ms", "detection_distance_m", "rear_range_m",
+                  "margin_long_m", "margin_lat_m", "offset_m")
+        for key in nonneg:
+            if not getattr(self, key) >= 0:
+                raise bad(key, "a number >= 0")
+        for key, lo, hi in (("n_stages", 2, 400), ("k_max", 1, 200), ("sub_updates", 1, 100),
+                            ("n_preview", 1, 1000), ("max_obstacles", 0, 16)):
+            v = getattr(self, key)
+            if not lo <= v <= hi:
+                raise bad(key, f"an integer in [{lo}, {hi}]")
+        if self.fd_step >= 1e-2:
+            raise bad("fd_step", "a number in (0, 0.01)")
+        if self.z_guard >= self.zeta:
+            raise bad("z_guard", f"a number < zeta = {self.zeta}")
+        if self.lookahead_s > self.horizon_s:
+            raise bad("lookahead_s", "a number <= horizon_s")
+        if self.n_preview * self.preview_dt_s > self.horizon_s:
+            raise bad("n_preview", "n_preview * preview_dt_s <= horizon_s")
+        try:
+            self.outer_params()
+        except ValueError as exc:  # a cost-specific weight is zero
+            raise ConfigError("controller.cost", "weights valid for this cost", str(exc)) from exc
+
+    def outer_params(self) -> OuterParams:
+        return OuterParams(
+            cost=self.cost, horizon_s=self.horizon_s, n_stages=self.n_stages,
+            chebyshev=self.chebyshev, n_obstacles=self.max_obstacles, c_y=self.c_y,
+            c_ydot=self.c_ydot, c_sdot=self.c_sdot, c_thetadot=self.c_thetadot,
+            c_theta=self.c_theta, c_v=self.c_v, c_z=self.c_z, zeta=self.zeta,
+            c_y_terminal=self.c_y_terminal, c_e_terminal=self.c_e_terminal, k_max=self.k_max,
+            zeta_s=self.zeta_s, fd_step=self.fd_step, sub_updates=self.sub_updates,
+            horizon_growth_rate=self.horizon_growth_rate,
+            target_accel_mps2=self.target_accel_mps2, target_decel_mps2=self.target_decel_mps2,
+            z_guard=self.z_guard, obstacle_fade_s=self.obstacle_fade_s,
+            row_scaling=self.row_scaling, fallback_residual=self.fallback_residual,
+            fallback_decel_mps2=self.fallback_decel_mps2, fallback_hold_s=self.fallback_hold_s)
+
+    @property
+    def obstacle_policy(self) -> ObstaclePolicy:
+        return ObstaclePolicy(
+            detection_distance_m=self.detection_distance_m, rear_range_m=self.rear_range_m,
+            margin_long_m=self.margin_long_m, margin_lat_m=self.margin_lat_m,
+            offset_m=self.offset_m, max_obstacles=self.max_obstacles,
+            moving_obstacles=self.moving_obstacles)
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+_KINDS: dict[str, type | tuple[type, ...]] = {"float": (int, float), "int": int, "bool": bool,
+                                              "str": str}
+_OPTION_TYPES: dict[str, type | tuple[type, ...]] = {}
+for _f in fields(TwoLoopParams):
+    _OPTION_TYPES[_f.name] = _KINDS[str(_f.type)]
+_OPTION_TYPES["name"] = str
+
+
+def make_two_loop(options: Mapping[str, Any]) -> TwoLoopController:
+    """Validate flat options (cheap, no compilation) and build the controller."""
+    check_options(options, _OPTION_TYPES)
+    opts = dict(options)
+    name = opts.pop("name", "two_loop")
+    if name != "two_loop":
+        raise ConfigError("controller.name", "'two_loop'", name)
+    params = TwoLoopParams(**opts)
+    return TwoLoopController(params)
+
+
+def _default_outer_factory(outer: str) -> OuterFactory:
+    if outer == "cgmres":
+        from controllers.cgmres_outer import CgmresOuter
+
+        return CgmresOuter
+    from controllers.baselines.ipopt_outer import IpoptOuter  # type: ignore[import-not-found]
+
+    return IpoptOuter  # type: ignore[no-any-return]
+
+
+class TwoLoopController:
+    """Controller protocol implementation; see module docstring."""
+
+    name = "two_loop"
+    simulated_by_sumo = False
+
+    def __init__(self, params: TwoLoopParams | None = None,
+                 outer_factory: OuterFactory | None = None) -> None:
+        self.params = params or TwoLoopParams()
+        self.obstacle_policy: ObstaclePolicy = self.params.obstacle_policy
+        self.outer_params = self.params.outer_params()
+        self._outer_factory = outer_factory
+        self.path: FrenetPath | None = None
+        self.outer: OuterSolver | None = None
+        self._context: ScenarioContext | None = None
+        self._s_hint = 0.0
+        self._integral = 0.0
+        self._t_prev: float | None = None
+        self.plan: OuterPlan | None = None
+
+    # ----------------------------------------------------------------- protocol
+    def reset(self, context: ScenarioContext) -> None:
+        p = self.params
+        self._context = context
+        self.path = FrenetPath.cached(context.reference_xy_m)
+        factory = self._outer_factory or _default_outer_factory(p.outer)
+        self.outer = factory(self.path, self.outer_params)
+        vp: VehicleParams = context.vehicle
+        self._vp = vp.as_array()
+        self._limits = np.array([vp.max_steer_rad, vp.max_drive_torque_nm,
+                                 vp.max_brake_torque_nm])
+        self._gains = np.array([p.k_ps, p.k_pv, p.k_pvc, p.k_psc, p.k_isc,
+                                1.0 if p.feedforward else 0.0, p.lookahead_s,
+                                vp.understeer_gradient_rad_per_mps2])
+        self._dt = context.control_period_s
+        self._preview_xy = np.zeros((p.n_preview + 1, 2))
+        self._inner_out = np.zeros(6)
+        st = np.asarray(context.initial_state, dtype=np.float64)
+        s, _ = self.path.project(st[0], st[1])
+        self._s_hint = float(s)
+        x0 = self._frenet_state(st)
+        v0 = float(math.hypot(st[3], st[4]))
+        self.outer.reset(x0, min(v0, context.target_speed_mps) if v0 > 0 else 0.0)
+        self._integral = 0.0
+        self._t_prev = None
+        self.plan = None
+        # Load the inner loop's compiled kernels now rather than in the first step.
+        meta, coef, knots = self.path.tables()
+        n = self.outer_params.n_stages
+        dummy_states = np.zeros((n + 1, 3))
+        dummy_states[:, 0] = np.linspace(0.0, 1.0, n + 1)
+        inner_step(st, np.linspace(0.0, 1.0, n + 1), dummy_states, np.ones(n), self._gains,
+                   self._vp, self._limits, 1, 0.01, meta, coef, knots,
+                   np.zeros((2, 2)), np.zeros(6))
+        _points_many(meta, coef, knots, np.zeros(1), np.zeros(1), np.zeros((1, 2)))
+
+    def _frenet_state(self, st: np.ndarray) -> np.ndarray:
+        """Measured state -> Frenet x0 = (s, y, theta_a) with theta_a next to gamma(s)."""
+        if self.path is None:
+            raise RuntimeError("TwoLoopController used before reset")
+        meta, coef, knots = self.path.tables()
+        s, d, ok = path_project_local(meta, coef, knots, float(st[0]), float(st[1]),
+                                      self._s_hint)
+        if not ok or abs(s - self._s_hint) > 50.0:
+            s_arr, d_arr = self.path.project(st[0], st[1])
+            s, d = float(s_arr), float(d_arr)
+        self._s_hint = s
+        u, v = float(st[3]), float(st[4])
+        speed = math.hypot(u, v)
+        tha = float(st[2]) + (math.atan2(v, u) if speed > 0.5 else 0.0)
+        g, _, _ = path_gamma(meta, coef, s)
+        e = (tha - g + math.pi) % (2.0 * math.pi) - math.pi
+        return np.array([s, d, g + e])
+
+    def step(self, observation: Observation) -> Command:
+        if self.path is None or self.outer is None:
+            raise RuntimeError("TwoLoopController.step called before reset")
+        p = self.params
+        t_outer0 = time.perf_counter()
+        st = np.asarray(observation.state, dtype=np.float64)
+        x0 = self._frenet_state(st)
+        dt = self._dt if self._t_prev is None else max(observation.t_s - self._t_prev, 1e-6)
+        plan = self.outer.update(observation.t_s, x0, observation.obstacles,
+                                 float(observation.target_speed_mps), self._dt)
+        self.plan = plan
+        t_inner0 = time.perf_counter()
+        meta, coef, knots = self.path.tables()
+        tau = np.ascontiguousarray(plan.stage_times_s, dtype=np.float64)
+        states = np.ascontiguousarray(plan.states, dtype=np.float64)
+        speeds = np.ascontiguousarray(plan.speeds_mps, dtype=np.float64)
+        out = self._inner_out
+        inner_step(st, tau, states, speeds, self._gains, self._vp, self._limits, p.n_preview,
+                   p.preview_dt_s, meta, coef, knots, self._preview_xy, out)
+        d_ol, t_ol, pe_t, pe_n = float(out[0]), float(out[1]), float(out[2]), float(out[3])
+        if p.preview and math.isfinite(pe_n) and math.isfinite(pe_t):
+            self._integral = min(max(self._integral + pe_n * dt, -p.integral_limit_ms),
+                                 p.integral_limit_ms)
+            d_c = p.k_psc * pe_n + p.k_isc * self._integral
+            t_c = p.k_pvc * pe_t
+        else:
+            d_c, t_c = 0.0, 0.0
+        steer = d_ol + d_c
+        torque = t_ol + t_c
+        fallback = bool(plan.fallback)
+        if not (math.isfinite(steer) and math.isfinite(torque)):
+            # Never hand out NaN: hold the lane heading and brake.
+            fallback = True
+            g = float(self.path.gamma(x0[0]))
+            steer = p.k_ps * ((g - float(st[2]) + math.pi) % (2 * math.pi) - math.pi)
+            torque = -self._vp[0] * self._vp[6] * p.fallback_decel_mps2
+            d_c = t_c = 0.0
+            d_ol, t_ol = steer, torque
+        t_end = time.perf_counter()
+        self._t_prev = observation.t_s
+        plan_xy = np.empty((states.shape[0], 2))
+        _points_many(meta, coef, knots, states[:, 0].copy(), states[:, 1].copy(), plan_xy)
+        diag = {
+            "outer_s": t_inner0 - t_outer0,
+            "inner_s": t_end - t_inner0,
+            "residual": float(plan.residual),
+            "fallback": 1.0 if fallback else 0.0,
+            "guard_fired": float(plan.guard_fired),
+            "steer_outer_rad": d_ol,
+            "steer_corr_rad": d_c,
+            "torque_outer_nm": t_ol,
+            "torque_corr_nm": t_c,
+            "planned_speed_mps": float(speeds[0]) if speeds.size else 0.0,
+            "preview_err_t_m": pe_t,
+            "preview_err_n_m": pe_n,
+            "outer_updates": float(p.sub_updates if p.outer == "cgmres" else 1),
+        }
+        return Command(steer_rad=float(steer), torque_nm=float(torque), diagnostics=diag,
+                       arrays={"plan_xy_m": plan_xy, "preview_xy_m": self._preview_xy.copy()})
+
+    def parameters(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"name": self.name}
+        out.update(self.params.as_dict())
+        return out

@@ -1,0 +1,237 @@
+"""Two-loop controller on the plant alone (no SUMO): configuration, obstacle avoidance,
+curves, pass side, follow mode, J1 vs J3 (paper result 1), preview on/off (result 2)."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+
+import numpy as np
+import pytest
+
+from controllers.closed_loop_sim import plan_tracking_error, simulate, steering_chatter
+from controllers.frenet import FrenetPath
+from controllers.obstacle_geometry import FrenetVehicle, build_obstacles, ellipse_semi_axes
+from controllers.outer_protocol import OuterPlan
+from controllers.protocol import ConfigError, Controller, Observation, ObstaclePolicy, Obstacles
+from controllers.spmm_ocp import OuterParams
+from controllers.two_loop import TwoLoopController, TwoLoopParams, make_two_loop
+from controllers.vehicle_model import VehicleParams
+
+DT = 0.02
+STRAIGHT = np.array([[0.0, 0.0], [1500.0, 0.0]])
+_th = np.linspace(0.0, 1.5, 300)
+CURVE = np.column_stack([400.0 * np.sin(_th), 400.0 * (1.0 - np.cos(_th))])  # left, R = 400
+STALLED = [FrenetVehicle(150.0, 0.0)]
+
+# nuPlan comfort limits.
+LAT_ACC = 4.89
+LONG_ACC = (-4.05, 2.40)
+YAW_RATE = 0.95
+
+
+def _run(road: np.ndarray = STRAIGHT, pass_side: int = 1, duration: float = 14.0,
+         vehicles: list[FrenetVehicle] | None = None, **options: object) -> dict:
+    ctl = make_two_loop(dict(options))
+    return simulate(ctl, road, STALLED if vehicles is None else vehicles,
+                    duration_s=duration, dt=DT, pass_side=pass_side)
+
+
+def _assert_safe_and_comfortable(tr: dict) -> None:
+    assert not tr["box_overlap"].any()
+    assert np.min(tr["ellipse_c"]) > 0.0  # CG never inside the margin-free ellipse
+    assert np.max(np.abs(tr["lat_acc_mps2"])) <= LAT_ACC
+    assert LONG_ACC[0] <= np.min(tr["long_acc_mps2"]) and np.max(tr["long_acc_mps2"]) <= LONG_ACC[1]
+    assert np.max(np.abs(tr["yaw_rate_radps"])) <= YAW_RATE
+    assert np.all(np.isfinite(tr["steer_rad"])) and np.all(np.isfinite(tr["torque_nm"]))
+
+
+# ----------------------------------------------------------------------------- config
+def test_make_two_loop_validates_options() -> None:
+    t0 = time.perf_counter()
+    ctl = make_two_loop({"name": "two_loop", "cost": "J3", "preview": True, "n_stages": 20,
+                         "horizon_s": 2.4, "k_max": 16, "margin_lat_m": 0.5})
+    assert time.perf_counter() - t0 < 0.05  # cheap: nothing compiled or solved
+    assert isinstance(ctl, Controller)
+    assert ctl.name == "two_loop" and ctl.simulated_by_sumo is False
+    assert ctl.obstacle_policy == ObstaclePolicy(margin_lat_m=0.5)
+    params = ctl.parameters()
+    assert json.loads(json.dumps(params))["cost"] == "J3"
+    cases = [({"bogus": 1}, "controller.bogus"), ({"cost": "J4"}, "controller.cost"),
+             ({"n_stages": 20.0}, "controller.n_stages"), ({"preview": 1}, "controller.preview"),
+             ({"horizon_s": -1.0}, "controller.horizon_s"), ({"k_max": 0}, "controller.k_max"),
+             ({"outer": "qp"}, "controller.outer"), ({"zeta": 0.01}, "controller.z_guard"),
+             ({"horizon_s": math.nan}, "controller.horizon_s"),
+             ({"max_obstacles": -1}, "controller.max_obstacles")]
+    for opts, key in cases:
+        with pytest.raises(ConfigError) as err:
+            make_two_loop(opts)
+        assert err.value.key == key, (opts, err.value)
+    with pytest.raises(ValueError):
+        TwoLoopParams(c_thetadot=0.0)  # J3 needs it
+
+
+def test_ellipse_geometry_and_detection() -> None:
+    pol = ObstaclePolicy(margin_long_m=2.0, margin_lat_m=0.4, offset_m=0.3,
+                         detection_distance_m=80.0, max_obstacles=2)
+    ego = VehicleParams()
+    a, b = ellipse_semi_axes(4.0, 1.8, ego.length_m, ego.width_m, pol)
+    assert (a, b) == pytest.approx((2.0 + 2.4 + 2.0, 0.9 + 0.95 + 0.4))
+    vehs = [FrenetVehicle(200.0, 0.0), FrenetVehicle(60.0, 0.0), FrenetVehicle(40.0, 3.5),
+            FrenetVehicle(-20.0, 0.0), FrenetVehicle(50.0, -3.5, speed_s_mps=20.0)]
+    obs = build_obstacles(0.0, 0.0, vehs, pol, ego, pass_side=1)
+    assert obs.count == 2  # nearest two within 80 m, not 20 m behind
+    assert obs.s_m[0] == 40.0 and obs.y_m[0] == pytest.approx(3.5 - 0.3)
+    assert obs.s_m[1] == 50.0 and obs.speed_s_mps[1] == 20.0
+    still = build_obstacles(0.0, 0.0, vehs, ObstaclePolicy(moving_obstacles=False), ego, -1)
+    assert np.all(still.speed_s_mps == 0.0) and 50.0 not in still.s_m
+    assert still.y_m[list(still.s_m).index(60.0)] == pytest.approx(0.3)  # pass right
+
+
+# ----------------------------------------------------------------------- avoidance
+@pytest.mark.parametrize("pass_side", [1, -1])
+def test_straight_stalled_car_passed_on_the_requested_side(pass_side: int) -> None:
+    tr = _run(pass_side=pass_side)
+    _assert_safe_and_comfortable(tr)
+    s, y = tr["s_m"], tr["y_m"]
+    at_obstacle = np.argmin(np.abs(s - 150.0))
+    assert pass_side * y[at_obstacle] > 1.5  # beside the car, on the requested side
+    after = s > 150.0 + 100.0
+    assert after.any() and np.max(np.abs(y[after])) < 0.3  # back in the lane centre
+    assert np.all(tr["fallback"] == 0)
+    assert np.max(tr["residual"]) < 5.0
+    assert tr["speed_mps"][-1] == pytest.approx(25.0, abs=0.5)
+
+
+def test_curved_road_with_stalled_car() -> None:
+    tr = _run(road=CURVE)
+    _assert_safe_and_comfortable(tr)
+    s, y = tr["s_m"], tr["y_m"]
+    before = s < 90.0
+    assert np.max(np.abs(y[(s > 20.0) & before])) < 0.1  # lane keeping on the curve
+    assert y[np.argmin(np.abs(s - 150.0))] > 1.5
+    assert np.max(np.abs(y[s > 250.0])) < 0.3
+    assert np.all(tr["fallback"] == 0)
+
+
+def test_slower_moving_car_overtaken() -> None:
+    lead = [FrenetVehicle(60.0, 0.0, speed_s_mps=15.0)]
+
+    def moving(t: float) -> list[FrenetVehicle]:
+        return [FrenetVehicle(v.s_m + v.speed_s_mps * t, v.y_m, speed_s_mps=v.speed_s_mps)
+                for v in lead]
+
+    ctl = make_two_loop({})
+    tr = simulate(ctl, STRAIGHT, moving, duration_s=14.0, dt=DT, pass_side=1)
+    _assert_safe_and_comfortable(tr)
+    gap = tr["s_m"] - (60.0 + 15.0 * tr["t_s"])
+    assert gap[-1] > 30.0  # overtaken
+    assert np.all(tr["fallback"] == 0)
+
+
+def test_follow_mode_stops_behind_blocking_car() -> None:
+    # The runner lowers the target speed to 0 when the blocking car is detected (80 m)
+    # and no side is free (pass_side 0: no offset, the ellipse sits on the lane).
+    v0 = 20.0
+    ctl = make_two_loop({})
+    tr = simulate(ctl, STRAIGHT, STALLED, duration_s=16.0, dt=DT, pass_side=0,
+                  initial_speed_mps=v0,
+                  target_speed_fn=lambda t, s: 0.0 if 150.0 - s < 80.0 else v0)
+    assert not tr["box_overlap"].any()
+    assert np.min(tr["ellipse_c"]) > 0.0
+    assert tr["speed_mps"][-1] < 0.1
+    assert np.max(np.abs(tr["y_m"])) < 0.2  # stays in its lane
+    ego = VehicleParams()
+    gap = 150.0 - 2.4 - (tr["s_m"][-1] + ego.cg_to_front_bumper_m)
+    assert 1.0 < gap < 15.0
+    assert np.min(tr["long_acc_mps2"]) >= LONG_ACC[0]
+    assert np.all(np.isfinite(tr["steer_rad"]))
+
+
+# ---------------------------------------------------------------- paper's results
+def test_j1_chatters_more_than_j3() -> None:
+    """Paper result 1 (Figs. 9-10): J1 violates the smoothness condition and chatters.
+
+    Chatter measure: RMS of the steering's second difference / dt² [rad/s²] while the
+    obstacle is in view (see ``steering_chatter``). E is reported, not asserted: with
+    our weights and row scaling J1's residual is *not* larger than J3's (see report).
+    """
+    out = {}
+    for cost in ("J1", "J3"):
+        tr = _run(cost=cost, duration=10.0)
+        in_view = np.abs(150.0 - tr["s_m"]) < 80.0
+        out[cost] = (steering_chatter(tr["steer_rad"], DT, in_view), float(np.max(tr["residual"])))
+        assert not tr["box_overlap"].any()
+    assert out["J3"][0] < 0.25 * out["J1"][0], out
+
+
+def test_preview_lowers_plan_tracking_error_on_curve() -> None:
+    """Paper result 2 (Figs. 11-13): curve (R = 400 m) + obstacle, J3, preview on vs off.
+
+    Lateral tracking error: y_car(t + 0.5 s) - y_plan(t)(0.5 s), RMS (see
+    ``plan_tracking_error``). Production setting (feed-forward on): over the whole run,
+    and the peak lateral acceleration. Paper's setting (conversion (13) only, no
+    feed-forward): on the curve before the obstacle, where the car without preview
+    settles 0.86 m outside the lane centre (with the obstacle it then stops in front of
+    it instead of passing: a local solution of the nonconvex plan; see the report).
+    """
+    res = {}
+    for ff in (False, True):
+        for preview in (False, True):
+            tr = _run(road=CURVE, preview=preview, feedforward=ff)
+            err = plan_tracking_error(tr, 0.5)
+            pre = (tr["s_m"] > 20.0) & (tr["s_m"] < 90.0)
+            res[(ff, preview)] = {
+                "rms": float(np.sqrt(np.nanmean(err**2))),
+                "rms_pre": float(np.sqrt(np.nanmean(err[pre] ** 2))),
+                "offset_pre": float(np.max(np.abs(tr["y_m"][pre]))),
+                "lat": float(np.max(np.abs(tr["lat_acc_mps2"]))),
+            }
+            assert not tr["box_overlap"].any()
+    on, off = res[(True, True)], res[(True, False)]
+    assert on["rms"] < 0.75 * off["rms"], res
+    assert on["lat"] <= off["lat"], res
+    on, off = res[(False, True)], res[(False, False)]
+    assert on["rms_pre"] < 0.5 * off["rms_pre"], res
+    assert on["offset_pre"] < 0.3 < 0.6 < off["offset_pre"], res
+
+
+# ------------------------------------------------------------------ robustness
+class _NanOuter:
+    """An outer loop that returns garbage: the controller must never emit NaN."""
+
+    def __init__(self, path: FrenetPath, params: OuterParams) -> None:
+        self.n = params.n_stages
+
+    def reset(self, x0: np.ndarray, target_speed_mps: float) -> None:
+        pass
+
+    def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,
+               target_speed_mps: float, dt_s: float) -> OuterPlan:
+        tau = np.linspace(0.0, 2.4, self.n + 1)
+        return OuterPlan(tau, np.full((self.n + 1, 3), np.nan), np.full(self.n, np.nan),
+                         np.full(self.n, np.nan), math.nan, False, 0, 0.0)
+
+
+def test_never_nan_and_custom_outer_factory() -> None:
+    ctl = TwoLoopController(TwoLoopParams(), outer_factory=_NanOuter)
+    tr = simulate(ctl, STRAIGHT, [], duration_s=1.0, dt=DT)
+    assert np.all(np.isfinite(tr["steer_rad"])) and np.all(np.isfinite(tr["torque_nm"]))
+    assert np.all(tr["fallback"] == 1.0)
+    assert tr["speed_mps"][-1] < 25.0  # it brakes
+    assert isinstance(ctl.path, FrenetPath)
+
+
+def test_command_contents() -> None:
+    ctl = make_two_loop({"n_preview": 8})
+    tr = simulate(ctl, STRAIGHT, [(150.0, 0.0, 4.8, 1.9)], duration_s=0.5, dt=DT)
+    for key in ("outer_s", "inner_s", "residual", "fallback", "guard_fired", "steer_outer_rad",
+                "steer_corr_rad", "torque_outer_nm", "torque_corr_nm", "planned_speed_mps",
+                "preview_err_t_m", "preview_err_n_m", "outer_updates"):
+        assert key in tr and np.all(np.isfinite(tr[key])), key
+    assert ctl.plan is not None and ctl.plan.states.shape == (21, 3)
+    cmd = ctl.step(Observation(t_s=0.52, state=tr["state"][-1], target_speed_mps=25.0))
+    assert cmd.arrays["plan_xy_m"].shape == (21, 2)
+    assert cmd.arrays["preview_xy_m"].shape == (9, 2)
+    assert np.all(np.isfinite(cmd.arrays["plan_xy_m"]))
