@@ -1,16 +1,26 @@
 """Obstacle ellipses for the outer loop (METHOD.md §4), pure functions shared with ``suite``.
 
 An obstacle vehicle (box length L_o, width W_o, centre (s, y) in the reference-path
-Frenet frame) becomes the ellipse
+Frenet frame) becomes an ellipse around the Minkowski sum of the two boxes (the
+SPMM is a point at the ego CG), a rectangle of half sizes
 
-    A = L_o/2 + L_ego/2 + margin_long_m     (along the path)  [m]
-    B = W_o/2 + W_ego/2 + margin_lat_m      (across)           [m]
+    a = L_o/2 + L_ego/2,    b = W_o/2 + W_ego/2.
 
-i.e. half sizes of both boxes plus a margin (the SPMM is a point at the ego CG).
-Its centre is shifted by ``offset_m`` *away* from the pass side (pass_side = +1:
-pass on the left, so the centre moves right: y - offset), which breaks the tie of
-an obstacle sitting on the reference path (paper Fig. 7). With pass_side = 0 (no
-free side / follow mode) there is no offset.
+An ellipse with semi-axes a and b is *inscribed* in that rectangle: its corners
+stick out ((a/a)^2 + (b/b)^2 = 2 > 1), so c >= 0 would not exclude contact. We
+therefore take the across-axis first and stretch the along-axis until the
+rectangle's corners lie on the ellipse, then add the margins:
+
+    B0 = b + margin_lat_m,   A0 = a / sqrt(1 - (b/B0)^2)      (corner (a, b) on it)
+    A  = A0 + margin_long_m, B  = B0 + offset_m               [m]
+
+A long, narrow ellipse suits highway passing better than the minimum-area
+(sqrt(2)-scaled) one, which would be 2.7 m wide for two cars. The centre is
+shifted by ``offset_m`` *away* from the pass side (pass_side = +1: pass on the
+left, so the centre moves right: y - offset), which breaks the tie of an obstacle
+sitting on the reference path (paper Fig. 7); B includes ``offset_m`` so that the
+shift never eats into the margin on the pass side. With pass_side = 0 (no free
+side / follow mode) there is no shift.
 
 Detection: Euclidean distance in (s, y) from the ego CG to the obstacle centre
 below ``detection_distance_m`` and not more than ``rear_range_m`` behind the CG;
@@ -43,10 +53,12 @@ class FrenetVehicle:
 
 def ellipse_semi_axes(obstacle_length_m: float, obstacle_width_m: float, ego_length_m: float,
                       ego_width_m: float, policy: ObstaclePolicy) -> tuple[float, float]:
-    """(A, B) [m] as in the module docstring."""
-    a = 0.5 * obstacle_length_m + 0.5 * ego_length_m + policy.margin_long_m
-    b = 0.5 * obstacle_width_m + 0.5 * ego_width_m + policy.margin_lat_m
-    return a, b
+    """(A, B) [m] as in the module docstring: the ellipse contains the box-sum rectangle."""
+    a = 0.5 * obstacle_length_m + 0.5 * ego_length_m
+    b = 0.5 * obstacle_width_m + 0.5 * ego_width_m
+    b0 = b + max(policy.margin_lat_m, 0.05)  # a strictly positive margin keeps A0 finite
+    a0 = a / np.sqrt(1.0 - (b / b0) ** 2)
+    return float(a0 + policy.margin_long_m), float(b0 + policy.offset_m)
 
 
 def offset_centre_y(y_m: float, pass_side: int, policy: ObstaclePolicy) -> float:

@@ -18,9 +18,9 @@ Pipeline per control step (all arrays, no libsumo calls):
    to a gap-keeping speed. A side, once the ego has moved more than
    ``commit_offset_m`` towards it, is kept for that obstacle (no mid-manoeuvre
    flip-flopping).
-4. Ellipse semi-axes: A = L_j/2 + L_ego/2 + margin_long,
-   B = W_j/2 + W_ego/2 + margin_lat; the lateral offset OS is added to y_j
-   *away* from the pass side (METHOD.md §4, Fig. 7).
+4. Ellipses: semi-axes and the offset OS away from the pass side from
+   :mod:`controllers.obstacle_geometry` (the ellipse contains the Minkowski sum
+   of the two boxes plus margins; METHOD.md §4, Fig. 7).
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from controllers.obstacle_geometry import ellipse_semi_axes, offset_centre_y
 from controllers.protocol import ObstaclePolicy, Obstacles
 from suite.world import Neighbours
 
@@ -65,13 +66,33 @@ class GapPolicy:
     commit_offset_m: float = 1.0
     follow_time_gap_s: float = 1.8
     follow_standstill_m: float = 6.0
+    follow_decel_mps2: float = 2.0
+    plan_horizon_s: float = 6.0
 
     def __post_init__(self) -> None:
         for name in ("clearance_m", "time_gap_s", "pass_after_m", "commit_offset_m",
-                     "follow_time_gap_s", "follow_standstill_m"):
+                     "follow_time_gap_s", "follow_standstill_m", "follow_decel_mps2",
+                     "plan_horizon_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"GapPolicy.{name} must be a finite number >= 0, got {v!r}")
+
+
+def follow_speed_mps(gap_m: float, lead_speed_mps: float, set_speed_mps: float,
+                     gap: GapPolicy) -> float:
+    """Speed set-point behind a leader that cannot be passed [m/s].
+
+    With the desired gap d* = standstill + time_gap * v_lead, the ego may go at
+    v = sqrt(v_lead^2 + 2 b (gap - d*)) while the gap exceeds d* (it can still
+    shed the difference at the comfortable deceleration b before reaching d*),
+    and at v_lead * gap / d* inside it. Clipped to [0, set speed].
+    """
+    desired = gap.follow_standstill_m + gap.follow_time_gap_s * lead_speed_mps
+    if gap_m >= desired:
+        v = math.sqrt(lead_speed_mps**2 + 2.0 * gap.follow_decel_mps2 * (gap_m - desired))
+    else:
+        v = lead_speed_mps * gap_m / max(desired, 1e-6)
+    return float(min(max(v, 0.0), set_speed_mps))
 
 
 @dataclass
@@ -163,14 +184,16 @@ class ObstacleBuilder:
             return ObstacleDecision(Obstacles.empty(), SIDE_NONE, "no obstacle", target_speed_mps)
         ds = fn.s_m - ego_s
         dist = np.hypot(ds, fn.y_m - ego_y)
-        relevant = (dist <= pol.detection_distance_m) & (ds >= -pol.rear_range_m)
-        if not pol.moving_obstacles:
-            relevant &= neighbours.stalled
         lane_rel = np.rint(fn.y_m / lane_width_m).astype(np.int64)
-        # Blocking: overlaps the reference lane laterally, ahead, and slow or stalled.
+        # Blocking: overlaps the reference lane laterally, ahead within the planning
+        # range (longer than the detection distance so that a blocked lane is known
+        # early enough to slow down comfortably), and slow or stalled.
+        plan_range = max(pol.detection_distance_m, ego_v * self.gap.plan_horizon_s)
         overlap_lat = np.abs(fn.y_m) < 0.5 * (lane_width_m + fn.width_m) - 0.2
         slower = (fn.v_s_mps < ego_v - 1.0) | neighbours.stalled
-        blocking = relevant & overlap_lat & slower & (ds > 0)
+        blocking = overlap_lat & slower & (ds > 0) & (ds <= plan_range)
+        if not pol.moving_obstacles:
+            blocking &= neighbours.stalled
         side = SIDE_NONE
         reason = "no obstacle in lane"
         target = target_speed_mps
@@ -189,7 +212,8 @@ class ObstacleBuilder:
                     ok, why = self._side_ok(cand, lanes, fn, lane_rel, ego_s, ego_v, blocker)
                     reasons.append(why)
                     if ok:
-                        side, reason = cand, why
+                        side = cand
+                        reason = why + (f" ({reasons[0]})" if len(reasons) > 1 else "")
                         break
                 if side == SIDE_NONE:
                     side = SIDE_FOLLOW
@@ -197,21 +221,31 @@ class ObstacleBuilder:
             if side in (SIDE_LEFT, SIDE_RIGHT) and side * ego_y > self.gap.commit_offset_m:
                 self._committed[bid] = side
             if side == SIDE_FOLLOW:
-                gap_m = max(float(ds[blocker]) - 0.5 * (fn.length_m[blocker] + self.ego_length_m), 0.0)
-                v_lead = max(float(fn.v_s_mps[blocker]), 0.0)
-                desired = self.gap.follow_standstill_m + self.gap.follow_time_gap_s * v_lead
-                # Constant-time-gap policy: speed that closes the gap error in ~2 s.
-                target = float(np.clip(v_lead + (gap_m - desired) / 2.0, 0.0, target_speed_mps))
+                gap_m = max(float(ds[blocker]) - 0.5 * (fn.length_m[blocker] + self.ego_length_m),
+                            0.0)
+                target = follow_speed_mps(gap_m, max(float(fn.v_s_mps[blocker]), 0.0),
+                                          target_speed_mps, self.gap)
 
+        # Ellipses only for vehicles in the lanes the ego occupies or is moving into:
+        # a barrier on a car two lanes away only makes the plan sway.
+        ego_lane_rel = int(np.rint(ego_y / lane_width_m))
+        lanes_of_interest = {0, ego_lane_rel}
+        if side in (SIDE_LEFT, SIDE_RIGHT):
+            lanes_of_interest.add(side)
+        relevant = ((dist <= pol.detection_distance_m) & (ds >= -pol.rear_range_m)
+                    & np.isin(lane_rel, sorted(lanes_of_interest)))
+        if not pol.moving_obstacles:
+            relevant &= neighbours.stalled
         order = np.flatnonzero(relevant)
         order = order[np.argsort(dist[order])][: pol.max_obstacles]
         if blocker >= 0 and blocker not in order and order.size:
             order[-1] = blocker
-        semi_a = 0.5 * (fn.length_m[order] + self.ego_length_m) + pol.margin_long_m
-        semi_b = 0.5 * (fn.width_m[order] + self.ego_width_m) + pol.margin_lat_m
+        axes = np.array([ellipse_semi_axes(fn.length_m[i], fn.width_m[i], self.ego_length_m,
+                                           self.ego_width_m, pol) for i in order]).reshape(-1, 2)
+        semi_a, semi_b = axes[:, 0], axes[:, 1]
         y = fn.y_m[order].copy()
         if side in (SIDE_LEFT, SIDE_RIGHT):
-            y[order == blocker] -= side * pol.offset_m
+            y[order == blocker] = offset_centre_y(float(fn.y_m[blocker]), side, pol)
         elif side == SIDE_FOLLOW:
             # Wide enough that no lateral way round exists within the carriageway.
             semi_b = np.where(order == blocker, semi_b + 1.5 * lane_width_m, semi_b)
@@ -239,7 +273,7 @@ def to_frenet(path: object, neighbours: Neighbours, s_hint: float) -> FrenetNeig
 
 
 def ellipses_in_world(path: object, obstacles: Obstacles) -> np.ndarray:
-    """(K, 6) [cx, cy, heading, A, B, active] for logs: centre via the path, axes along its tangent."""
+    """(K, 6) [cx, cy, heading, A, B, active] for logs; axes along the path tangent."""
     k = obstacles.count
     out = np.zeros((k, 6))
     if k == 0:
