@@ -251,6 +251,19 @@ def test_lat_dev_and_speed(tmp_path: Path) -> None:
     assert m["mean_speed_error_mps"] == pytest.approx(-2.0)
 
 
+def test_final_lat_dev_is_taken_over_the_last_two_seconds(tmp_path: Path) -> None:
+    trace = sr.straight_trace(10.0, 0.05, 20.0)
+    t = trace["t_s"].to_numpy()
+    # 1.5 m out until 7.5 s, then 0.2 m: the last 2 s (from 7.95 s) see only 0.2 m.
+    trace["lat_dev_m"] = np.where(t < 7.5, 1.5, 0.2)
+    m = evaluate_run(_load(tmp_path, trace), {"max_final_abs_lat_dev_m": 0.3}).metrics
+    assert m["final_abs_lat_dev_m"] == pytest.approx(0.2)
+    trace["lat_dev_m"] = np.where(t < 8.5, 0.0, -0.45)
+    result = evaluate_run(_load(tmp_path / "b", trace), {"max_final_abs_lat_dev_m": 0.3})
+    assert result.metrics["final_abs_lat_dev_m"] == pytest.approx(0.45)
+    assert "final_abs_lat_dev_m=0.45>0.3" in result.failed
+
+
 # --------------------------------------------------------------------------- timing
 
 

@@ -48,6 +48,7 @@ CRITERIA_METRICS: dict[str, tuple[str, str]] = {
     "min_ellipse_margin": ("min_ellipse_margin", "min"),
     "max_shoulder_s": ("shoulder_s", "max"),
     "max_rms_lat_dev_m": ("rms_lat_dev_m", "max"),
+    "max_final_abs_lat_dev_m": ("final_abs_lat_dev_m", "max"),
     "max_deadline_misses": ("deadline_misses", "max"),
     "max_fallbacks": ("fallbacks", "max"),
     "max_residual": ("residual_max", "max"),
@@ -74,6 +75,7 @@ class Criteria:
     min_ellipse_margin: float | None = None
     max_shoulder_s: float | None = None
     max_rms_lat_dev_m: float | None = None
+    max_final_abs_lat_dev_m: float | None = None
     max_deadline_misses: float | None = None
     max_fallbacks: float | None = None
     max_residual: float | None = None

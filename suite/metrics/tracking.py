@@ -89,6 +89,19 @@ def max_abs_lat_dev_m(record: RunRecord) -> float:
     return _nan_stat(np.abs(column(record, "lat_dev_m")), "max")
 
 
+FINAL_WINDOW_S = 2.0
+
+
+def final_abs_lat_dev_m(record: RunRecord, window_s: float = FINAL_WINDOW_S) -> float:
+    """max |lateral deviation| [m] over the last ``window_s`` of the run: has the car
+    settled back on the lane centre (e.g. after passing an obstacle)? NaN if empty."""
+    lat = column(record, "lat_dev_m")
+    t = column(record, "t_s")
+    if lat.size == 0 or t.size != lat.size:
+        return math.nan
+    return _nan_stat(np.abs(lat[t >= t[-1] - window_s]), "max")
+
+
 def max_abs_heading_err_rad(record: RunRecord) -> float:
     """Maximum |heading_err_rad| [rad]."""
     return _nan_stat(np.abs(column(record, "heading_err_rad")), "max")
@@ -184,6 +197,7 @@ def tracking_metrics(record: RunRecord) -> dict[str, float]:
     return {
         "rms_lat_dev_m": rms_lat_dev_m(record),
         "max_abs_lat_dev_m": max_abs_lat_dev_m(record),
+        "final_abs_lat_dev_m": final_abs_lat_dev_m(record),
         "max_abs_heading_err_rad": max_abs_heading_err_rad(record),
         "mean_speed_mps": mean_speed_mps(record),
         "mean_target_speed_mps": mean_target_speed_mps(record),
