@@ -94,6 +94,10 @@ class Observation:
         blocked lane's obstacle when no side is free).
     obstacles: ellipses within the detection distance, nearest first.
     pass_side: +1 pass on the left, -1 on the right, 0 no obstacle or follow.
+    lateral_reference_m: where the plan should settle across the reference path
+        [m, left +]: 0 on the reference lane; the centre of the neighbour lane
+        (signed distance between lane centres) while passing on that side. The
+        runner steps it; controllers smooth it (see ``TwoLoopParams``).
     """
 
     t_s: float
@@ -101,6 +105,7 @@ class Observation:
     target_speed_mps: float
     obstacles: Obstacles = field(default_factory=Obstacles.empty)
     pass_side: int = 0
+    lateral_reference_m: float = 0.0
 
 
 @dataclass
