@@ -115,6 +115,7 @@ class ObstacleDecision:
     target_speed_mps: float
     ids: list[str] = field(default_factory=list)
     ellipses_world: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    lateral_reference_m: float = 0.0
 
 
 def gap_is_free(ego_s: float, ego_v: float, ego_len: float, obs_s: float, obs_len: float,
@@ -153,6 +154,9 @@ class ObstacleBuilder:
         self.allow_shoulder = allow_shoulder
         self.gap = gap or GapPolicy()
         self._committed: dict[str, int] = {}
+        # The vehicle being passed: id -> (side, lateral reference [m]); kept until the
+        # ego is ``pass_after_m`` beyond its rear so the car does not cut back in early.
+        self._passing: dict[str, tuple[int, float]] = {}
 
     def _side_ok(self, side: int, lanes: dict[int, LaneSlot], fn: FrenetNeighbours,
                  lane_rel: np.ndarray, ego_s: float, ego_v: float, j: int) -> tuple[bool, str]:
@@ -220,11 +224,30 @@ class ObstacleBuilder:
                     reason = "follow: " + "; ".join(reasons)
             if side in (SIDE_LEFT, SIDE_RIGHT) and side * ego_y > self.gap.commit_offset_m:
                 self._committed[bid] = side
+            if side in (SIDE_LEFT, SIDE_RIGHT):
+                self._passing = {bid: (side, self._lane_offset_m(side, lanes, lane_width_m))}
+            else:
+                self._passing = {}
             if side == SIDE_FOLLOW:
                 gap_m = max(float(ds[blocker]) - 0.5 * (fn.length_m[blocker] + self.ego_length_m),
                             0.0)
                 target = follow_speed_mps(gap_m, max(float(fn.v_s_mps[blocker]), 0.0),
                                           target_speed_mps, self.gap)
+
+        lat_ref = 0.0
+        if blocker < 0 and self._passing:
+            bid, (p_side, p_ref) = next(iter(self._passing.items()))
+            idx = neighbours.ids.index(bid) if bid in neighbours.ids else -1
+            behind_by = ego_s - (fn.s_m[idx] + 0.5 * (fn.length_m[idx] + self.ego_length_m)) \
+                if idx >= 0 else math.inf
+            if behind_by < self.gap.pass_after_m:
+                side, lat_ref = p_side, p_ref
+                reason = f"passing {bid}"
+                blocker = idx
+            else:
+                self._passing = {}
+        elif self._passing:
+            lat_ref = next(iter(self._passing.values()))[1]
 
         # Ellipses only for vehicles in the lanes the ego occupies or is moving into:
         # a barrier on a car two lanes away only makes the plan sway.
@@ -254,7 +277,15 @@ class ObstacleBuilder:
             speed_y_mps=fn.v_y_mps[order].copy(), semi_a_m=semi_a, semi_b_m=semi_b,
         )
         ids = [neighbours.ids[i] for i in order]
-        return ObstacleDecision(obstacles, side, reason, target, ids)
+        return ObstacleDecision(obstacles, side, reason, target, ids, lateral_reference_m=lat_ref)
+
+    def _lane_offset_m(self, side: int, lanes: dict[int, LaneSlot], lane_width_m: float) -> float:
+        """Signed distance from the reference lane's centre to the neighbour lane's [m]."""
+        ref = lanes.get(self.reference_lane)
+        target = lanes.get(self.reference_lane + side)
+        w_ref = ref.width_m if ref is not None else lane_width_m
+        w_target = target.width_m if target is not None else lane_width_m
+        return side * 0.5 * (w_ref + w_target)
 
 
 def to_frenet(path: object, neighbours: Neighbours, s_hint: float) -> FrenetNeighbours:

@@ -74,6 +74,8 @@ TRACE_COLUMNS: dict[str, str] = {
     "side": "pass side chosen: +1 left, -1 right, 0 none, 2 follow (no side free)",
     "side_reason": "why that side (text)",
     "n_obstacles": "obstacles given to the controller [-]",
+    "lat_ref_m": "lateral reference given to the controller (pass lane centre), left + [m]",
+    "lat_ref_smoothed_m": "the controller's smoothed lateral reference [m] (NaN if n/a)",
     "residual": "outer-loop residual E = ||F||inf (NaN if n/a)",
     "fallback": "a safe fallback replaced the plan this step (bool)",
     "guard_fired": "barrier guard count this step [-]",

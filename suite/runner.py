@@ -328,7 +328,7 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
         s_hint = float(s_now)
         speed = math.hypot(state[3], state[4])
         tc0 = time.perf_counter()
-        side, reason, n_obs = SIDE_NONE, "", 0
+        side, reason, n_obs, lat_ref = SIDE_NONE, "", 0, 0.0
         step_target = target
         ellipses = np.zeros((0, 6))
         obs_kwargs: dict[str, Any] = {}
@@ -340,8 +340,10 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
             side, reason, step_target = decision.side, decision.reason, decision.target_speed_mps
             n_obs = decision.obstacles.count
             ellipses = ellipses_in_world(path, decision.obstacles)
+            lat_ref = decision.lateral_reference_m
             obs_kwargs = {"obstacles": decision.obstacles,
-                          "pass_side": side if side in (-1, 1) else 0}
+                          "pass_side": side if side in (-1, 1) else 0,
+                          "lateral_reference_m": lat_ref}
         t_obs = time.perf_counter() - tc0
         command = controller.step(Observation(t_s, state.copy(), step_target, **obs_kwargs))
         t_ctrl = time.perf_counter() - tc0
@@ -393,7 +395,8 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
             "min_gap_m": gap, "gap_vehicle": gap_id,
             "geom_collision": overlap, "sumo_collision": bool(hits),
             "ssm_ttc_s": math.nan, "side": side, "side_reason": reason,
-            "n_obstacles": n_obs, "residual": diag.get("residual", math.nan),
+            "n_obstacles": n_obs, "lat_ref_m": lat_ref,
+            "lat_ref_smoothed_m": diag.get("lateral_ref_m", math.nan), "residual": diag.get("residual", math.nan),
             "fallback": bool(diag.get("fallback", 0.0)),
             "guard_fired": int(diag.get("guard_fired", 0)),
             "outer_s": diag.get("outer_s", math.nan), "inner_s": diag.get("inner_s", math.nan),

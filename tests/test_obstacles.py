@@ -152,3 +152,27 @@ def test_follow_speed_known_answers() -> None:
     assert follow_speed_mps(500.0, 0.0, 25.0, g) == 25.0
     assert follow_speed_mps(6.0 + 1.8 * 10.0, 10.0, 25.0, g) == pytest.approx(10.0)
     assert follow_speed_mps(12.0, 10.0, 25.0, g) == pytest.approx(5.0)
+
+
+def test_lateral_reference_is_the_pass_lane_until_the_car_is_passed(path: FrenetPath) -> None:
+    lanes = {0: LaneSlot(0, 3.0, False, True), 1: LaneSlot(1, W, True, False),
+             2: LaneSlot(2, W, True, False)}
+    builder = ObstacleBuilder(ObstaclePolicy(), 4.8, 1.9, 1, True, GapPolicy(pass_after_m=15.0))
+    nb = neighbours([("stalled0", 300.0, 0.0, 0.0)])
+
+    def at(s: float, y: float):
+        return builder.build(s, y, 25.0, 25.0, nb, to_frenet(path, nb, s), lanes, W)
+
+    assert at(200.0, 0.0).lateral_reference_m == pytest.approx(W)  # left: 3.5 m over
+    alongside = at(301.0, 3.4)
+    assert alongside.side == SIDE_LEFT and alongside.lateral_reference_m == pytest.approx(W)
+    assert alongside.reason == "passing stalled0"
+    # Stalled box centre at 300, half lengths 2.4 + 2.4: 15 m beyond that is s = 319.8.
+    assert at(319.0, 3.5).lateral_reference_m == pytest.approx(W)
+    done = at(320.5, 3.5)
+    assert done.lateral_reference_m == 0.0 and done.side == SIDE_NONE
+    # Passing on a 3.0 m shoulder: the reference is between the two centres, 3.25 m right.
+    right = ObstacleBuilder(ObstaclePolicy(), 4.8, 1.9, 1, True)
+    busy = neighbours([("stalled0", 300.0, 0.0, 0.0), ("carL", 200.0, W, 25.0)])
+    d = right.build(200.0, 0.0, 25.0, 25.0, busy, to_frenet(path, busy, 200.0), lanes, W)
+    assert d.side == SIDE_RIGHT and d.lateral_reference_m == pytest.approx(-3.25)
