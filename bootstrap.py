@@ -60,7 +60,8 @@ def main(argv: list[str]) -> int:
     if action == "demo":
         ensure_venv("baselines")
         out = ROOT / "runs" / "demo"
-        code = subprocess.run([str(VENV / "bin" / "hwyeval"), "run", str(ROOT / "catalogs" / "demo.toml"),
+        catalog = ROOT / "catalogs" / "demo.toml"
+        code = subprocess.run([str(VENV / "bin" / "hwyeval"), "run", str(catalog),
                                "--out", str(out), *argv[2:]]).returncode
         print(f"demo finished with exit code {code}; open {out / 'report.html'}")
         return code

@@ -39,7 +39,8 @@ class LaneKeepParams:
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
             if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"LaneKeepParams.{name} must be a finite number >= 0, got {value!r}")
+                raise ValueError(
+                    f"LaneKeepParams.{name} must be a finite number >= 0, got {value!r}")
         if self.lookahead_min_m <= 0 or self.lookahead_max_m < self.lookahead_min_m:
             raise ValueError("LaneKeepParams: need 0 < lookahead_min_m <= lookahead_max_m")
 

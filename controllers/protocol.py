@@ -54,7 +54,8 @@ class ScenarioContext:
         if ref.ndim != 2 or ref.shape[1] != 2 or ref.shape[0] < 2:
             raise ValueError(f"reference_xy_m must have shape (M>=2, 2), got {ref.shape}")
         if self.lane_width_m <= 0 or self.target_speed_mps < 0 or self.control_period_s <= 0:
-            raise ValueError("ScenarioContext: lane width and control period must be > 0, speed >= 0")
+            raise ValueError(
+                "ScenarioContext: lane width and control period must be > 0, speed >= 0")
 
 
 @dataclass(frozen=True)
@@ -178,6 +179,8 @@ class ObstaclePolicy:
                      "offset_m"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and np.isfinite(value) and value >= 0):
-                raise ValueError(f"ObstaclePolicy.{name} must be a finite number >= 0, got {value!r}")
+                raise ValueError(
+                    f"ObstaclePolicy.{name} must be a finite number >= 0, got {value!r}")
         if not (isinstance(self.max_obstacles, int) and self.max_obstacles >= 0):
-            raise ValueError(f"ObstaclePolicy.max_obstacles must be an int >= 0, got {self.max_obstacles!r}")
+            raise ValueError(
+                f"ObstaclePolicy.max_obstacles must be an int >= 0, got {self.max_obstacles!r}")

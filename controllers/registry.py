@@ -44,7 +44,8 @@ def make(name: str, options: Mapping[str, Any] | None = None) -> Controller:
     return _REGISTRY[name](dict(options or {}))
 
 
-def check_options(options: Mapping[str, Any], allowed: Mapping[str, type | tuple[type, ...]]) -> None:
+def check_options(options: Mapping[str, Any],
+                  allowed: Mapping[str, type | tuple[type, ...]]) -> None:
     """Raise ConfigError for an unknown key or a value of the wrong type."""
     for key, value in options.items():
         if key not in allowed:

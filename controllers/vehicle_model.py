@@ -58,9 +58,11 @@ class VehicleParams:
         for name in positive:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"VehicleParams.{name} must be a finite positive number, got {value!r}")
+                raise ValueError(
+                    f"VehicleParams.{name} must be a finite positive number, got {value!r}")
         if self.front_overhang_m < 0:
-            raise ValueError(f"VehicleParams.front_overhang_m must be >= 0, got {self.front_overhang_m}")
+            raise ValueError(
+                f"VehicleParams.front_overhang_m must be >= 0, got {self.front_overhang_m}")
         if self.wheelbase_m + self.front_overhang_m > self.length_m:
             raise ValueError("VehicleParams: wheelbase + front overhang exceeds length_m")
 
@@ -98,7 +100,8 @@ class VehicleParams:
 
 
 @numba.njit(cache=True, fastmath=False)
-def stvm_derivative(state: np.ndarray, steer_rad: float, torque_nm: float, p: np.ndarray) -> np.ndarray:
+def stvm_derivative(state: np.ndarray, steer_rad: float, torque_nm: float,
+                    p: np.ndarray) -> np.ndarray:
     """dx/dt of the STVM; ``p`` from :meth:`VehicleParams.as_array`. Shape (6,)."""
     m, inertia, a, b, c1, c2, radius, v_min = p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7]
     psi, u, v, r = state[2], state[3], state[4], state[5]
@@ -148,7 +151,8 @@ class SingleTrackPlant:
     a_x = u' - r v and a_y = v' + r u of the last step are kept for the trace.
     """
 
-    def __init__(self, params: VehicleParams, state: np.ndarray, substeps_per_step: int = 4) -> None:
+    def __init__(self, params: VehicleParams, state: np.ndarray,
+                 substeps_per_step: int = 4) -> None:
         if substeps_per_step < 1:
             raise ValueError(f"substeps_per_step must be >= 1, got {substeps_per_step}")
         state = np.asarray(state, dtype=np.float64)

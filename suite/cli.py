@@ -179,7 +179,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("run", help="run a catalog")
     s.add_argument("catalog")
     s.add_argument("--out", required=True, help="output directory")
-    s.add_argument("--jobs", type=int, default=0, help="parallel scenario processes (default: cores)")
+    s.add_argument("--jobs", type=int, default=0,
+                   help="parallel scenario processes (default: cores)")
     s.add_argument("--filter", default=None, help="glob on scenario names")
     s.add_argument("--no-log", action="store_true", help="do not write Rerun .rrd logs")
     s.add_argument("--executor", choices=["local", "ray"], default="local")

@@ -98,11 +98,13 @@ class Executor(Protocol):
 
 
 class LocalExecutor:
+    """Scenario processes on this machine, at most ``jobs`` at once (see module docstring)."""
+
     def __init__(self, jobs: int = 1, start_method: str = "forkserver") -> None:
         if jobs < 1:
             raise ValueError(f"jobs must be >= 1, got {jobs}")
         self.jobs = jobs
-        self.ctx = mp.get_context(start_method)
+        self.ctx: Any = mp.get_context(start_method)
         if start_method == "forkserver":
             self.ctx.set_forkserver_preload(PRELOAD)
 
@@ -162,7 +164,8 @@ class RayExecutor:
             import ray
         except ImportError as exc:
             raise RuntimeError(
-                "the Ray executor needs the 'cluster' extra: pip install 'hwyeval[cluster]'") from exc
+                "the Ray executor needs the 'cluster' extra: pip install 'hwyeval[cluster]'"
+            ) from exc
         self.ray = ray
         if not ray.is_initialized():
             ray.init(address=address, include_dashboard=False, log_to_driver=False)

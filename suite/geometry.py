@@ -61,6 +61,8 @@ def box_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.where(boxes_overlap(a, b), 0.0, best)
 
 
-def ego_box_centre(x_cg: float, y_cg: float, psi_rad: float, cg_to_box_centre_m: float) -> tuple[float, float]:
+def ego_box_centre(x_cg: float, y_cg: float, psi_rad: float,
+                   cg_to_box_centre_m: float) -> tuple[float, float]:
     """The ego's box centre from its CG (the box centre lies ahead of the CG by the offset)."""
-    return (x_cg + cg_to_box_centre_m * np.cos(psi_rad), y_cg + cg_to_box_centre_m * np.sin(psi_rad))
+    return (float(x_cg + cg_to_box_centre_m * np.cos(psi_rad)),
+            float(y_cg + cg_to_box_centre_m * np.sin(psi_rad)))

@@ -32,7 +32,7 @@ from controllers.frenet import FrenetPath
 from controllers.protocol import Controller, Observation, ScenarioContext
 from controllers.vehicle_model import SingleTrackPlant, VehicleParams
 from suite import run_record as rr
-from suite.geometry import box_corners, box_distance, boxes_overlap
+from suite.geometry import box_corners, box_distance, boxes_overlap, ego_box_centre
 from suite.obstacles import (
     SIDE_NONE,
     LaneSlot,
@@ -146,10 +146,8 @@ def _initial_state(path: FrenetPath, front_pos_m: float, speed_mps: float,
 
 
 def _ego_box(state: np.ndarray, vehicle: VehicleParams) -> np.ndarray:
-    x, y, psi = state[0], state[1], state[2]
-    d = vehicle.cg_to_box_centre_m
-    return box_corners(x + d * math.cos(psi), y + d * math.sin(psi), psi,
-                       vehicle.length_m, vehicle.width_m)
+    cx, cy = ego_box_centre(state[0], state[1], state[2], vehicle.cg_to_box_centre_m)
+    return box_corners(cx, cy, state[2], vehicle.length_m, vehicle.width_m)
 
 
 def _gap_and_collision(ego_box: np.ndarray, nb: Neighbours) -> tuple[float, str, bool]:
@@ -216,7 +214,8 @@ def run_scenario(scenario: Any, out_dir: Path, options: RunOptions | None = None
         recorder.write(run_dir, detection_m)
     except Exception:  # noqa: BLE001
         meta["status"] = "error"
-        meta["error"] = (meta["error"] or "") + "\nwhile writing the trace:\n" + traceback.format_exc()
+        meta["error"] = ((meta["error"] or "") + "\nwhile writing the trace:\n"
+                         + traceback.format_exc())
     _finish(run_dir, meta, options)
     return meta
 
@@ -256,7 +255,8 @@ def _finish(run_dir: Path, meta: dict[str, Any], options: RunOptions) -> None:
         meta["failed_criteria"] = []
         if meta["status"] == "ok":
             meta["status"] = "error"
-        meta["error"] = (meta["error"] or "") + "\nwhile evaluating metrics:\n" + traceback.format_exc()
+        meta["error"] = ((meta["error"] or "") + "\nwhile evaluating metrics:\n"
+                         + traceback.format_exc())
     write_json(run_dir / rr.RUN_JSON, meta)
     if options.write_rrd:
         t0 = time.perf_counter()
@@ -396,7 +396,8 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
             "geom_collision": overlap, "sumo_collision": bool(hits),
             "ssm_ttc_s": math.nan, "side": side, "side_reason": reason,
             "n_obstacles": n_obs, "lat_ref_m": lat_ref,
-            "lat_ref_smoothed_m": diag.get("lateral_ref_m", math.nan), "residual": diag.get("residual", math.nan),
+            "lat_ref_smoothed_m": diag.get("lateral_ref_m", math.nan),
+            "residual": diag.get("residual", math.nan),
             "fallback": bool(diag.get("fallback", 0.0)),
             "guard_fired": int(diag.get("guard_fired", 0)),
             "outer_s": diag.get("outer_s", math.nan), "inner_s": diag.get("inner_s", math.nan),

@@ -80,7 +80,8 @@ class Neighbours:
     @staticmethod
     def empty() -> Neighbours:
         z = np.zeros(0)
-        return Neighbours([], z, z, z, z, z, z, np.zeros(0, dtype=np.int64), [], np.zeros(0, dtype=bool))
+        return Neighbours([], z, z, z, z, z, z, np.zeros(0, dtype=np.int64), [],
+                          np.zeros(0, dtype=bool))
 
 
 @dataclass
@@ -135,9 +136,9 @@ class SumoWorld:
         lines.append('    <param key="has.ssm.device" value="true"/>')
         lines.append('    <param key="device.ssm.measures" value="TTC DRAC PET"/>')
         lines.append('    <param key="device.ssm.trajectories" value="true"/>')
-        lines.append(f'    <param key="device.ssm.file" value="{su.escape(str(self.work_dir / "ssm.xml"))}"/>')
+        ssm_path = su.escape(str(self.ssm_file))
+        lines.append(f'    <param key="device.ssm.file" value="{ssm_path}"/>')
         lines.append("  </vType>")
-        lines.append('  <vType id="stalled" vClass="passenger" color="255,60,60" length="4.8" width="1.9"/>')
         traffic = sc.traffic
         dev = traffic.speed_factor_dev if traffic is not None else 0.1
         lines.append(
@@ -162,7 +163,9 @@ class SumoWorld:
                 f'  <vehicle id="{vid}" type="stalled_{i}" route="r_{vid}" depart="0" '
                 f'departLane="{st.lane}" departPos="{_fmt(pos)}" departSpeed="0">'
             )
-            lines.append(f'    <stop lane="{edge}_{st.lane}" endPos="{_fmt(pos)}" duration="1000000"/>')
+            # A stop that outlasts any run keeps it on its lane, not parked beside it.
+            lines.append(f'    <stop lane="{edge}_{st.lane}" endPos="{_fmt(pos)}" '
+                         f'duration="1000000"/>')
             lines.append("  </vehicle>")
 
         ego = sc.ego
@@ -213,14 +216,12 @@ class SumoWorld:
                     edge, pos_on_edge = net.locate(self.route, pos)
                     if not near_ego_or_stalled and net.lane_count(edge) > lane:
                         k = self.route.index(edge)
-                        depart_speed = speed
-                        # Vehicles upstream of a stall on its lane start slower (they will change lanes).
                         vid = f"pre{n}"
                         lines.append(f'  <route id="r_{vid}" edges="{" ".join(self.route[k:])}"/>')
                         lines.append(
                             f'  <vehicle id="{vid}" type="bg" route="r_{vid}" depart="0" '
                             f'departLane="{lane}" departPos="{_fmt(max(pos_on_edge, 5.0))}" '
-                            f'departSpeed="{_fmt(depart_speed)}"/>'
+                            f'departSpeed="{_fmt(speed)}"/>'
                         )
                         n += 1
                     pos += max(float(rng.exponential(mean_gap_m)), 12.0)

@@ -58,7 +58,8 @@ def hwyeval(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.fixture(scope="module")
-def catalog_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, subprocess.CompletedProcess[str]]:
+def catalog_run(
+        tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, subprocess.CompletedProcess[str]]:
     base = tmp_path_factory.mktemp("foundation")
     catalog = base / "foundation.toml"
     catalog.write_text(CATALOG)
@@ -202,8 +203,8 @@ BAD_CATALOGS = {
     "lane_out_of_range": ("ego = { lane = 5, pos_m = 50.0, speed_mps = 20.0 }", "lane"),
     "pos_out_of_range": ("ego = { lane = 0, pos_m = 9000.0, speed_mps = 20.0 }", "pos_m"),
     "unknown_net": ('ego = { lane = 0, pos_m = 50.0, speed_mps = 20.0 }\nnet = "nowhere"', "net"),
-    "unknown_controller": ('ego = { lane = 0, pos_m = 50.0, speed_mps = 20.0 }\ncontroller = "magic"',
-                           "controller"),
+    "unknown_controller": (
+        'ego = { lane = 0, pos_m = 50.0, speed_mps = 20.0 }\ncontroller = "magic"', "controller"),
     "bad_controller_option": (
         'ego = { lane = 0, pos_m = 50.0, speed_mps = 20.0 }\n'
         'controller = { name = "lane_keep", lookahead_min_m = "far" }', "lookahead_min_m"),
