@@ -2,23 +2,20 @@
 
 from __future__ import annotations
 
+import importlib.util
+
 from controllers.lane_keep import make_lane_keep
 from controllers.registry import register
 from controllers.sumo_driver import make_sumo_driver
+from controllers.two_loop import make_two_loop
 
 register("lane_keep", make_lane_keep)
 register("sumo", make_sumo_driver)
+register("two_loop", make_two_loop)
 
-try:
-    from controllers.two_loop import make_two_loop
-except ImportError:  # pragma: no cover - during bring-up only
-    make_two_loop = None  # type: ignore[assignment]
-if make_two_loop is not None:
-    register("two_loop", make_two_loop)
-
-try:
+# The Ipopt baseline needs CasADi (the 'baselines' extra); without it the name is absent
+# and a catalog naming it gets a clear "unknown controller" error listing what exists.
+if importlib.util.find_spec("casadi") is not None:
     from controllers.baselines.ipopt_nmpc import make_ipopt_nmpc
-except ImportError:  # casadi is an optional extra
-    make_ipopt_nmpc = None  # type: ignore[assignment]
-if make_ipopt_nmpc is not None:
+
     register("ipopt_nmpc", make_ipopt_nmpc)
