@@ -150,13 +150,15 @@ def cmd_view(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from controllers.bench import run_benchmark
+    from suite.bench import run_all, summary_lines
 
-    figures = run_benchmark()
-    text = json.dumps(figures, indent=1)
-    print(text)
+    figures = run_all(include_runner=not args.controller_only,
+                      include_ipopt=not args.controller_only)
+    for line in summary_lines(figures):
+        print(line)
     if args.out:
-        Path(args.out).write_text(text)
+        Path(args.out).write_text(json.dumps(figures, indent=1, default=str))
+        print(f"figures: {args.out}")
     return EXIT_OK
 
 
@@ -199,8 +201,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("dir")
     s.add_argument("--failed", action="store_true", help="open every non-passing run of DIR")
     s.set_defaults(func=cmd_view)
-    s = sub.add_parser("bench", help="controller timing benchmark (ratios, one run)")
-    s.add_argument("--out", default=None)
+    s = sub.add_parser("bench", help="speed and memory benchmark (ratios, one run)")
+    s.add_argument("--out", default=None, help="write every figure as JSON")
+    s.add_argument("--controller-only", action="store_true",
+                   help="only the plant-only controller timing (no SUMO, no Ipopt)")
     s.set_defaults(func=cmd_bench)
     s = sub.add_parser("controllers", help="list registered controllers")
     s.set_defaults(func=cmd_controllers)

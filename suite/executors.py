@@ -29,7 +29,7 @@ from suite import run_record as rr
 from suite.runner import RunOptions, write_json
 
 PRELOAD = ["numpy", "pandas", "numba", "libsumo", "suite.runner", "suite.catalog",
-           "controllers.builtin"]
+           "controllers.builtin", "suite.warmup"]
 _KILL_GRACE_S = 10.0
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import resource
 import time
 import traceback
 from dataclasses import dataclass
@@ -209,6 +210,8 @@ def run_scenario(scenario: Any, out_dir: Path, options: RunOptions | None = None
             world.close()
             _attach_ssm(world, meta, recorder)
     meta["wall_s"] = time.perf_counter() - wall0
+    # Linux reports ru_maxrss in KiB: the scenario process's peak memory.
+    meta["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     meta["sim_time_s"] = float(recorder.rows[-1]["t_s"]) if recorder.rows else 0.0
     try:
         recorder.write(run_dir, detection_m)
