@@ -66,7 +66,7 @@ def main(argv: list[str]) -> int:
         print(f"demo finished with exit code {code}; open {out / 'report.html'}")
         return code
     if action == "test":
-        ensure_venv("test,baselines")
+        ensure_venv("test,baselines,cluster")
         ensure_chromium()
         code = subprocess.run([str(PY), "-m", "pytest", *argv[2:]], cwd=ROOT).returncode
         if code == 5:
