@@ -126,10 +126,18 @@ def gap_is_free(ego_s: float, ego_v: float, ego_len: float, obs_s: float, obs_le
     Relative motion is linear, so the minimum bumper distance over the window
     [0, T] (T = time for the ego to get ``pass_after_m`` past the obstacle) is
     attained at an end point or where the relative position crosses zero.
+    A (near-)stationary vehicle anywhere in the stretch the ego sweeps, from its
+    rear to ``pass_after_m`` beyond the obstacle, blocks whatever the ego's
+    speed (a slow ego would otherwise "outwait" it in the time-based test).
     """
     if lane_s.size == 0:
         return True
-    horizon_s = max(obs_s + 0.5 * obs_len + gap.pass_after_m - ego_s, 0.0) / max(ego_v, 1.0)
+    end_s = obs_s + 0.5 * obs_len + gap.pass_after_m
+    stationary = np.abs(lane_v) < 0.5
+    reach = 0.5 * (lane_len + ego_len) + gap.clearance_m
+    if np.any(stationary & (lane_s > ego_s - reach) & (lane_s < end_s + reach)):
+        return False
+    horizon_s = max(end_s - ego_s, 0.0) / max(ego_v, 1.0)
     need = gap.clearance_m + gap.time_gap_s * ego_v
     rel0 = lane_s - ego_s
     rel_v = lane_v - ego_v
@@ -192,7 +200,9 @@ class ObstacleBuilder:
         # Blocking: overlaps the reference lane laterally, ahead within the planning
         # range (longer than the detection distance so that a blocked lane is known
         # early enough to slow down comfortably), and slow or stalled.
-        plan_range = max(pol.detection_distance_m, ego_v * self.gap.plan_horizon_s)
+        g = self.gap
+        plan_range = max(pol.detection_distance_m, ego_v * g.plan_horizon_s,
+                         ego_v**2 / (2.0 * g.follow_decel_mps2) + g.follow_standstill_m + 30.0)
         overlap_lat = np.abs(fn.y_m) < 0.5 * (lane_width_m + fn.width_m) - 0.2
         slower = (fn.v_s_mps < ego_v - 1.0) | neighbours.stalled
         blocking = overlap_lat & slower & (ds > 0) & (ds <= plan_range)

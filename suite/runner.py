@@ -90,10 +90,15 @@ class _Recorder:
         self.preview: list[np.ndarray | None] = []
         self.ellipses: list[np.ndarray] = []
 
-    def add_neighbours(self, step: int, t_s: float, nb: Neighbours) -> None:
-        n = nb.count
-        if n == 0:
+    def add_neighbours(self, step: int, t_s: float, nb: Neighbours, keep: np.ndarray) -> None:
+        """Log the neighbours where ``keep`` (within the recording radius)."""
+        if not np.any(keep):
             return
+        idx = np.flatnonzero(keep)
+        nb = Neighbours([nb.ids[i] for i in idx], nb.x_m[idx], nb.y_m[idx], nb.heading_rad[idx],
+                        nb.speed_mps[idx], nb.length_m[idx], nb.width_m[idx],
+                        nb.lane_index[idx], [nb.edge_id[i] for i in idx], nb.stalled[idx])
+        n = nb.count
         self.nb["step"].extend([step] * n)
         self.nb["t_s"].extend([t_s] * n)
         self.nb["id"].extend(nb.ids)
@@ -323,6 +328,7 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
     first_collision_t: float | None = None
     end_s = path.length_m - _END_OF_ROUTE_MARGIN_M
     timeout = options.timeout_s
+    record_radius_m = float(scenario.record_radius_m)
     for step in range(n_steps):
         if timeout is not None and time.perf_counter() - wall0 > timeout:
             raise ScenarioTimeout(f"wall-clock budget of {timeout} s exceeded at step {step}")
@@ -406,7 +412,8 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
             "outer_s": diag.get("outer_s", math.nan), "inner_s": diag.get("inner_s", math.nan),
             "obstacles_s": t_obs, "controller_s": t_ctrl, "sumo_s": t_sumo,
         })
-        rec.add_neighbours(step, t_end, nb)
+        rec.add_neighbours(step, t_end, nb,
+                           np.hypot(nb.x_m - state[0], nb.y_m - state[1]) <= record_radius_m)
         rec.plan.append(command.arrays.get("plan_xy_m"))
         rec.preview.append(command.arrays.get("preview_xy_m"))
         rec.ellipses.append(ellipses)

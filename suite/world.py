@@ -39,7 +39,8 @@ from suite.road_network import RoadNetwork
 EGO_ID = "ego"
 STALLED_PREFIX = "stalled"
 HAZARD_SIGNAL = 1 << 2  # SUMO VEH_SIGNAL_BLINKER_EMERGENCY
-_INSERT_CLEARANCE_M = 30.0  # keep pre-placed traffic this far from the ego and stalled cars
+_INSERT_CLEARANCE_M = 30.0
+SENSING_RADIUS_M = 300.0  # keep pre-placed traffic this far from the ego and stalled cars
 
 
 def sumo_binary() -> str:
@@ -119,7 +120,9 @@ class SumoWorld:
         self.stalled_ids: list[str] = []
         self._started = False
         self._libsumo: Any = None
-        self._radius_m = float(scenario.record_radius_m)
+        # Sensing reaches further than what is logged: side choice needs to see the
+        # target lane over the whole manoeuvre (planning range + gap window).
+        self._radius_m = max(float(scenario.record_radius_m), SENSING_RADIUS_M)
         self.collisions: list[dict[str, Any]] = []
 
     # ---------------------------------------------------------------- set-up

@@ -145,6 +145,17 @@ def test_gap_is_free_known_answers() -> None:
                        np.array([4.8]), g)
 
 
+def test_a_stalled_car_in_the_target_lane_blocks_even_a_crawling_ego() -> None:
+    g = GapPolicy()
+    # Ego nearly stopped 13 m behind the blocker; a second stalled car sits in the target
+    # lane 5 m beyond it. The time-based test alone would call this free at 0.3 m/s.
+    assert not gap_is_free(404.6, 0.3, 4.8, 417.6, 4.8, np.array([422.6]), np.array([0.0]),
+                           np.array([4.8]), g)
+    # Far beyond the manoeuvre it does not matter.
+    assert gap_is_free(404.6, 0.3, 4.8, 417.6, 4.8, np.array([520.0]), np.array([0.0]),
+                       np.array([4.8]), g)
+
+
 def test_follow_speed_known_answers() -> None:
     g = GapPolicy(follow_standstill_m=6.0, follow_time_gap_s=1.8, follow_decel_mps2=2.0)
     assert follow_speed_mps(6.0, 0.0, 25.0, g) == 0.0
