@@ -63,8 +63,11 @@ def main(argv: list[str]) -> int:
         catalog = ROOT / "catalogs" / "demo.toml"
         code = subprocess.run([str(VENV / "bin" / "hwyeval"), "run", str(catalog),
                                "--out", str(out), *argv[2:]]).returncode
-        print(f"demo finished with exit code {code}; open {out / 'report.html'}")
-        return code
+        # Exit 1 means the catalog ran and some verdicts are "fail" (the SUMO driver
+        # model brakes harder than nuPlan's comfort limits): that is the demo's content.
+        # Only invalid input (2) or a crash of the tool itself fails the demo command.
+        print(f"demo finished (hwyeval exit code {code}); open {out / 'report.html'}")
+        return 0 if code in (0, 1) else code
     if action == "test":
         ensure_venv("test,baselines,cluster")
         ensure_chromium()
