@@ -1,0 +1,93 @@
+"""A real SUMO run's Rerun log, read back with Rerun's own reader (rerun.chunk.RrdReader)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from rerun.chunk import RrdReader
+from rerun_fixtures import read_chunks, render_birdseye, rows_at_step
+
+from suite.rerun_log import recording_id_for
+
+pytestmark = pytest.mark.sumo
+
+ROOT = Path(__file__).resolve().parents[1]
+CATALOG = """
+[defaults]
+controller = "two_loop"
+duration_s = 14.0
+step_s = 0.02
+seed = 4
+[[scenario]]
+name = "rrd_stall_traffic"
+net = "straight_3lane"
+ego = { lane = 1, pos_m = 80.0, speed_mps = 25.0 }
+stalled = [ { lane = 1, pos_m = 300.0 } ]
+traffic = { vehicles_per_hour = 1500, seed = 9, lanes = [0, 2] }
+"""
+
+
+@pytest.fixture(scope="module")
+def two_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    base = tmp_path_factory.mktemp("rrd")
+    catalog = base / "rrdcat.toml"
+    catalog.write_text(CATALOG)
+    outs = []
+    for label in ("a", "b"):
+        out = base / label
+        proc = subprocess.run([sys.executable, "-m", "suite", "run", str(catalog), "--out",
+                               str(out)], cwd=ROOT, capture_output=True, text=True, timeout=600)
+        assert proc.returncode in (0, 1), proc.stdout + proc.stderr
+        outs.append(out / "rrd_stall_traffic")
+    return outs[0], outs[1]
+
+
+def test_entity_paths_of_a_real_run(two_runs) -> None:
+    run_dir, _ = two_runs
+    paths = {c.entity_path for c in read_chunks(run_dir / "run.rrd")}
+    for p in ("/world/road/lanes", "/world/road/centrelines", "/world/reference_path",
+              "/world/ego/box", "/world/vehicles", "/world/stalled", "/world/ellipses",
+              "/world/plan", "/world/preview", "/world/detection", "/safety/min_gap_m",
+              "/comfort/accel_mps2/lat", "/controller/residual", "/timing/step_ms/outer",
+              "/events", "/docs/scenario", "/docs/controller"):
+        assert p in paths, p
+
+
+def test_one_ego_pose_per_step_and_static_road_once(two_runs) -> None:
+    run_dir, _ = two_runs
+    trace = pd.read_parquet(run_dir / "trace.parquet")
+    steps: list[int] = []
+    road_static = road_temporal = 0
+    for c in read_chunks(run_dir / "run.rrd"):
+        if c.entity_path == "/world/ego/box" and not c.is_static:
+            steps += c.to_record_batch().column("step").to_pylist()
+        if c.entity_path == "/world/road/lanes":
+            if c.is_static:
+                road_static += c.num_rows
+            else:
+                road_temporal += c.num_rows
+    assert sorted(steps) == trace["step"].tolist()
+    assert road_static == 1 and road_temporal == 0
+    # The plan drawn at a step is the controller's plan of that step (N+1 points).
+    plan = rows_at_step(read_chunks(run_dir / "run.rrd"), "/world/plan", 300,
+                        "LineStrips2D:strips")
+    assert plan and len(plan[0]) == 21
+
+
+def test_recording_id_is_stable_across_identical_runs(two_runs) -> None:
+    a, b = two_runs
+    id_a = RrdReader(a / "run.rrd").recordings()[0].recording_id
+    id_b = RrdReader(b / "run.rrd").recordings()[0].recording_id
+    assert id_a == id_b == recording_id_for("rrdcat", "rrd_stall_traffic", 4)
+
+
+def test_birdseye_picture_from_the_log(two_runs, tmp_path: Path) -> None:
+    run_dir, _ = two_runs
+    trace = pd.read_parquet(run_dir / "trace.parquet")
+    passing = int(trace.loc[trace["n_obstacles"] > 0, "step"].iloc[len(trace) // 10])
+    png = render_birdseye(run_dir / "run.rrd", passing, tmp_path / "birdseye.png")
+    assert png.stat().st_size > 1000
