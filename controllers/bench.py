@@ -2,7 +2,8 @@
 
 ``run_benchmark`` drives :class:`TwoLoopController` on a straight road at 25 m/s
 past three stalled cars (one in the ego lane, two in the right lane, so that all
-obstacle slots are active while passing) twice:
+obstacle slots are active while passing), with the runner's lateral reference
+(+3.5 m from detection of the car in the ego lane until 15 m past it), twice:
 
 1. with every C/GMRES sub-update called and timed separately -> per-update times
    (one update = k_max + 3 residual evaluations + GMRES + Euler + guard, compiled);
@@ -24,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from controllers.closed_loop_sim import simulate
+from controllers.closed_loop_sim import pass_reference, simulate
 from controllers.obstacle_geometry import FrenetVehicle
 from controllers.protocol import Command, Observation, ScenarioContext
 from controllers.two_loop import TwoLoopController, TwoLoopParams
@@ -86,12 +87,16 @@ def run_benchmark(options: Mapping[str, Any] | None = None, duration_s: float = 
             outer.time_each_subupdate = True
 
     ctl.reset = reset_timed  # type: ignore[method-assign]
-    tr1 = simulate(ctl, road, cars, duration_s=duration_s, pass_side=1)
+    # The runner's lateral reference: the left lane while the car in the ego lane is passed.
+    def lateral() -> Any:
+        return pass_reference(150.0, 1, 3.5, params.detection_distance_m, 15.0)
+
+    tr1 = simulate(ctl, road, cars, duration_s=duration_s, pass_side=1, lateral_fn=lateral())
     sub = np.asarray(getattr(ctl.outer, "subupdate_times_s", []), dtype=np.float64)
     sub = sub[warmup_steps * params.sub_updates:]
     # 2) whole control step
     timed = _TimedController(TwoLoopController(params))
-    tr2 = simulate(timed, road, cars, duration_s=duration_s, pass_side=1)
+    tr2 = simulate(timed, road, cars, duration_s=duration_s, pass_side=1, lateral_fn=lateral())
     steps = np.asarray(timed.step_times_s[warmup_steps:])
     results["outer_update"] = _stats(sub) if sub.size else {}
     results["control_step"] = _stats(steps)

@@ -48,6 +48,11 @@ from controllers.outer_protocol import OuterPlan
 from controllers.protocol import Obstacles
 from controllers.spmm_ocp import (
     _FM,
+    _P_CY,
+    _P_CYR,
+    _P_SCALE,
+    _P_YREF,
+    _P_YREFD,
     OuterParams,
     activate_slot,
     deactivate_slot,
@@ -74,6 +79,10 @@ def cgmres_updates(uvec: np.ndarray, udot: np.ndarray, x0a: np.ndarray, x0b: np.
     """``n_sub`` C/GMRES updates from (x0a, t_a) to (x0b, t_a + dt_total), in place.
 
     hz = [t_init, T_f, growth rate]; tshift_b = (t_a + dt_total) - obstacle time stamp;
+    prm[_P_YREF] is the lateral reference at t_a and prm[_P_YREFD] its rate: yr moves
+    linearly to yr(t_a) + rate dt_total across the call, and its motion enters the F_t
+    forward difference; likewise Cy (prm[_P_CY]) with rate prm[_P_CYR] (prm is
+    restored on return);
     cfg = [k_max, zeta_s, h, z_guard, zeta]; work: flat scratch of length
     >= work_size(n, N, k_max). Outputs: xs_out (N+1, 3) plan at the end state;
     stats = [E, guard count, non-finite flag, GMRES residual of the last solve].
@@ -118,16 +127,26 @@ def cgmres_updates(uvec: np.ndarray, udot: np.ndarray, x0a: np.ndarray, x0b: np.
         xd[c] = (x0b[c] - x0a[c]) / dt_total
     guards = 0
     gres = 0.0
+    yr_a = prm[_P_YREF]
+    yr_rate = prm[_P_YREFD]
+    cy_a = prm[_P_CY]
+    cy_rate = prm[_P_CYR]
     for k in range(n_sub):
         tk = t_a + k * ddt
         frac = k / n_sub
+        yr_k = yr_a + yr_rate * (k * ddt)
         for c in range(3):
             xk[c] = x0a[c] + frac * (x0b[c] - x0a[c])
             xh[c] = xk[c] + h * xd[c]
         tk_shift = tshift_b - dt_total + k * ddt
         tt, tdot = _horizon(tk, hz[0], hz[1], hz[2])
         tth = tt + h * tdot
+        cy_k = cy_a + cy_rate * (k * ddt)
+        prm[_P_YREF] = yr_k
+        prm[_P_CY] = cy_k
         ocp_residual(uvec, xk, tt, tk_shift, prm, obs, w, meta, coef, xs_out, ps, f0)
+        prm[_P_YREF] = yr_k + h * yr_rate
+        prm[_P_CY] = cy_k + h * cy_rate
         ocp_residual(uvec, xh, tth, tk_shift + h, prm, obs, w, meta, coef, xs_out, ps, fxh)
         for i in range(n):
             ut[i] = uvec[i] + h * udot[i]
@@ -174,10 +193,14 @@ def cgmres_updates(uvec: np.ndarray, udot: np.ndarray, x0a: np.ndarray, x0b: np.
     tb = t_a + dt_total
     tt, _ = _horizon(tb, hz[0], hz[1], hz[2])
     # E on the unscaled residual (row scaling, if any, is a solver device only).
-    scale_flag = prm[12]
-    prm[12] = 0.0
+    scale_flag = prm[_P_SCALE]
+    prm[_P_SCALE] = 0.0
+    prm[_P_YREF] = yr_a + yr_rate * dt_total
+    prm[_P_CY] = cy_a + cy_rate * dt_total
     ocp_residual(uvec, x0b, tt, tshift_b, prm, obs, w, meta, coef, xs_out, ps, f0)
-    prm[12] = scale_flag
+    prm[_P_SCALE] = scale_flag
+    prm[_P_YREF] = yr_a
+    prm[_P_CY] = cy_a
     e = 0.0
     finite = True
     for i in range(n):
@@ -226,6 +249,8 @@ class CgmresOuter:
         self._x_prev = np.zeros(3)
         self._hz = np.array([0.0, params.horizon_s, params.horizon_growth_rate])
         self._vt = 0.0
+        self._yr = 0.0  # lateral reference at the previous update [m]
+        self._cy = params.c_y  # Cy at the previous update
         self._fallback_until = -math.inf
         self._fallback_v0 = 0.0
         self.fallback_count = 0
@@ -253,6 +278,8 @@ class CgmresOuter:
         self._initialised = False
         self._x_prev = np.asarray(x0, dtype=np.float64).copy()
         self._vt = float(target_speed_mps)
+        self._yr = 0.0
+        self._cy = self.params.c_y
         self._obs = obstacle_table(self.params.n_obstacles)
         self._fallback_until = -math.inf
         self.fallback_count = 0
@@ -270,7 +297,7 @@ class CgmresOuter:
 
     def _initialise(self, t_s: float, x0: np.ndarray) -> None:
         self._hz[0] = t_s
-        prm = pack_params(self.params, self._vt)
+        prm = pack_params(self.params, self._vt, self._yr, lateral_weight=self._cy)
         stage_init(x0, 0.0, prm, self._obs, self.meta, self.coef, self.params.n_stages, self._u)
         self._udot[:] = 0.0
         self._initialised = True
@@ -343,22 +370,40 @@ class CgmresOuter:
         self._obs_t = t_s
 
     def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,
-               target_speed_mps: float, dt_s: float) -> OuterPlan:
+               target_speed_mps: float, dt_s: float,
+               lateral_reference_m: float = 0.0,
+               lateral_weight: float | None = None) -> OuterPlan:
+        """One control period; ``lateral_reference_m`` is yr of Cy (y - yr)² at t_s,
+        ``lateral_weight`` Cy at t_s (None: params.c_y).
+
+        yr and Cy are taken as moving linearly from the previous update's values to
+        these (their rates enter F_t), so smooth yr(t), Cy(t) are tracked without
+        residual jumps; a step is a step in F (the caller should smooth them, as
+        TwoLoopController does).
+        """
         t_start = time.perf_counter()
         p = self.params
         x0 = np.asarray(x0, dtype=np.float64).copy()
+        yr = float(lateral_reference_m)
+        if not math.isfinite(yr):
+            raise ValueError(f"lateral_reference_m must be finite, got {lateral_reference_m!r}")
+        cy = p.c_y if lateral_weight is None else float(lateral_weight)
+        if not (math.isfinite(cy) and cy >= 0.0):
+            raise ValueError(f"lateral_weight must be finite and >= 0, got {lateral_weight!r}")
         # Rate-limited target speed (the paper ramps Vtarget).
         if self._initialised:
             elapsed = max(t_s - self._t_prev, 0.0)
             dv = float(target_speed_mps) - self._vt
             dv = min(max(dv, -p.target_decel_mps2 * elapsed), p.target_accel_mps2 * elapsed)
             self._vt += dv
-        prm = pack_params(p, self._vt)
+        prm = pack_params(p, self._vt, yr, lateral_weight=cy)
         horizon_prev = self.horizon_now(self._t_prev) if self._initialised else 0.0
         self._match_obstacles(t_s, obstacles, horizon_prev, prm)
         fallback = False
         guards = 0
         if not self._initialised:
+            self._yr = yr
+            self._cy = cy
             self._initialise(t_s, x0)
             self._stats[:] = 0.0
             self._final_residual(t_s, x0, prm)
@@ -366,12 +411,19 @@ class CgmresOuter:
             dt = t_s - self._t_prev
             if not dt > 0:
                 dt = dt_s
+            # yr at the start of the interval and its rate (restored to yr afterwards).
+            prm[_P_YREF] = self._yr
+            prm[_P_YREFD] = (yr - self._yr) / dt
+            prm[_P_CY] = self._cy
+            prm[_P_CYR] = (cy - self._cy) / dt
             if self.time_each_subupdate:
                 n_sub = p.sub_updates
                 ddt = dt / n_sub
                 xa = self._x_prev.copy()
                 for k in range(n_sub):
                     xb = self._x_prev + (k + 1) / n_sub * (x0 - self._x_prev)
+                    prm[_P_YREF] = self._yr + prm[_P_YREFD] * k * ddt
+                    prm[_P_CY] = self._cy + prm[_P_CYR] * k * ddt
                     t0 = time.perf_counter()
                     cgmres_updates(self._u, self._udot, xa, xb, self._t_prev + k * ddt, ddt, 1,
                                    self._hz, self._t_prev + (k + 1) * ddt - t_s, prm,
@@ -386,12 +438,18 @@ class CgmresOuter:
                                self.meta, self.coef, self._cfg, self._work, self._xs,
                                self._stats)
                 guards = int(self._stats[1])
+            prm[_P_YREF] = yr
+            prm[_P_YREFD] = 0.0
+            prm[_P_CY] = cy
+            prm[_P_CYR] = 0.0
             e = float(self._stats[0])
             if self._stats[2] > 0.5 or not math.isfinite(e) or e > p.fallback_residual:
                 fallback = True
         self.guard_total += guards
         self._t_prev = t_s
         self._x_prev = x0
+        self._yr = yr
+        self._cy = cy
         if fallback:
             self.fallback_count += 1
             self._fallback_until = t_s + p.fallback_hold_s

@@ -8,7 +8,8 @@ are turned into the controller's ellipses with its ``obstacle_policy``
 
 Returned traces (dict of arrays, one row per control step, SI units): t_s, state
 (K, 6), s_m, y_m (Frenet CG), steer_rad, torque_nm, lat_acc_mps2, long_acc_mps2,
-yaw_rate_radps, speed_mps, the controller's diagnostics (one array per key), plans
+yaw_rate_radps, speed_mps, lateral_reference_m (the raw reference given), the
+controller's diagnostics (one array per key), plans
 (K, N+1, 3 Frenet states) and plan_tau_s (K, N+1) when the controller exposes
 ``plan``, box_overlap (K,) bool (ego box vs any obstacle box, separating axes),
 ellipse_c (K, n_obstacles) ellipse value of the ego CG for every vehicle with the
@@ -30,6 +31,8 @@ from controllers.protocol import Controller, Observation, ObstaclePolicy, Scenar
 from controllers.vehicle_model import SingleTrackPlant, VehicleParams
 
 VehiclesFn = Callable[[float], Sequence[FrenetVehicle]]
+# (t_s, s_m, y_m) of the ego CG -> (pass_side, lateral_reference_m), as the runner decides.
+LateralFn = Callable[[float, float, float], tuple[int, float]]
 VehicleLike = FrenetVehicle | tuple[float, ...]
 
 
@@ -58,14 +61,41 @@ def boxes_overlap(a: np.ndarray, b: np.ndarray) -> bool:
     return True
 
 
+def pass_reference(obstacle_s_m: float, pass_side: int = 1, lane_offset_m: float = 3.5,
+                   detect_m: float = 80.0, release_past_m: float = 15.0) -> LateralFn:
+    """A ``lateral_fn`` emulating the runner for one stalled car in the ego lane.
+
+    (pass_side, pass_side * lane_offset_m) from the moment the ego CG is within
+    ``detect_m`` before the car until it is ``release_past_m`` past it, (pass_side, 0)
+    afterwards (latched: the reference steps out once and back once).
+    """
+    state = {"released": False}
+
+    def fn(t_s: float, s_m: float, y_m: float) -> tuple[int, float]:
+        if state["released"] or s_m > obstacle_s_m + release_past_m:
+            state["released"] = True
+            return pass_side, 0.0
+        if obstacle_s_m - s_m <= detect_m:
+            return pass_side, pass_side * lane_offset_m
+        return pass_side, 0.0
+
+    return fn
+
+
 def simulate(controller: Controller, path_xy: np.ndarray,
              vehicles: Sequence[VehicleLike] | VehiclesFn = (), duration_s: float = 10.0,
              dt: float = 0.02, initial_speed_mps: float = 25.0, target_speed_mps: float = 25.0,
              pass_side: int = 1, initial_s_m: float = 0.0, initial_y_m: float = 0.0,
              target_speed_fn: Callable[[float, float], float] | None = None,
              vehicle: VehicleParams | None = None, lane_width_m: float = 3.5,
+             lateral_fn: LateralFn | None = None,
              ) -> dict[str, Any]:
-    """Run ``controller`` for ``duration_s``; see module docstring for the traces."""
+    """Run ``controller`` for ``duration_s``; see module docstring for the traces.
+
+    ``lateral_fn(t, s_cg, y_cg) -> (pass_side, lateral_reference_m)`` emulates the
+    runner's lane context every step (it overrides ``pass_side``); without it the
+    lateral reference is 0. The raw reference is traced as ``lateral_reference_m``.
+    """
     vp = vehicle or VehicleParams()
     path = FrenetPath.cached(path_xy)
     x0, y0 = path.to_global(initial_s_m, initial_y_m)
@@ -81,7 +111,7 @@ def simulate(controller: Controller, path_xy: np.ndarray,
     rec: dict[str, list[Any]] = {k: [] for k in (
         "t_s", "state", "s_m", "y_m", "steer_rad", "torque_nm", "lat_acc_mps2",
         "long_acc_mps2", "yaw_rate_radps", "speed_mps", "box_overlap", "ellipse_c",
-        "ellipse_c_margin", "plans", "plan_tau_s")}
+        "ellipse_c_margin", "plans", "plan_tau_s", "lateral_reference_m")}
     diags: dict[str, list[float]] = {}
     s_hint = initial_s_m
     no_margin = ObstaclePolicy(margin_long_m=0.0, margin_lat_m=0.0)
@@ -92,10 +122,14 @@ def simulate(controller: Controller, path_xy: np.ndarray,
         s_cg, y_cg = float(s_arr), float(y_arr)
         s_hint = s_cg
         vehs = [_as_vehicle(v) for v in (vehicles(t) if callable(vehicles) else vehicles)]
-        obstacles = build_obstacles(s_cg, y_cg, vehs, policy, vp, pass_side)
+        side, y_ref = pass_side, 0.0
+        if lateral_fn is not None:
+            side, y_ref = lateral_fn(t, s_cg, y_cg)
+        obstacles = build_obstacles(s_cg, y_cg, vehs, policy, vp, side)
         vt = target_speed_fn(t, s_cg) if target_speed_fn is not None else target_speed_mps
         obs = Observation(t_s=t, state=st.copy(), target_speed_mps=vt, obstacles=obstacles,
-                          pass_side=pass_side if obstacles.count else 0)
+                          pass_side=side if obstacles.count else 0,
+                          lateral_reference_m=float(y_ref))
         cmd = controller.step(obs)
         if not (math.isfinite(cmd.steer_rad) and math.isfinite(cmd.torque_nm)):
             raise AssertionError(f"non-finite command at t={t}")
@@ -128,6 +162,7 @@ def simulate(controller: Controller, path_xy: np.ndarray,
         rec["yaw_rate_radps"].append(float(plant.state[5]))
         rec["speed_mps"].append(float(math.hypot(st[3], st[4])))
         rec["box_overlap"].append(overlap)
+        rec["lateral_reference_m"].append(float(y_ref))
         rec["ellipse_c"].append(cs)
         rec["ellipse_c_margin"].append(cm)
         plan = getattr(controller, "plan", None)

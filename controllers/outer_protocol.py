@@ -46,9 +46,18 @@ class OuterPlan:
 
 
 class OuterSolver(Protocol):
-    """reset once per run; update every outer period with the measured Frenet state."""
+    """reset once per run; update every outer period with the measured Frenet state
+    (and the lateral reference yr the plan should settle on)."""
 
     def reset(self, x0: np.ndarray, target_speed_mps: float) -> None: ...
 
     def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,
-               target_speed_mps: float, dt_s: float) -> OuterPlan: ...
+               target_speed_mps: float, dt_s: float,
+               lateral_reference_m: float = 0.0,
+               lateral_weight: float | None = None) -> OuterPlan:
+        """lateral_reference_m: yr [m, left +] of the running cost Cy (y - yr)² (and of
+        the terminal CyT (y_N - yr)²), constant over the horizon; 0 keeps the paper's
+        Cy y². lateral_weight: Cy [1/(m² s)] of this update (None: OuterParams.c_y).
+        Callers pass smooth signals (TwoLoopController shapes the runner's steps): a
+        jump in yr or Cy is a jump in the optimality residual."""
+        ...

@@ -12,12 +12,21 @@ Models and costs (e = theta - gamma(s), D = 1 - y kappa(s)):
 * J3 (model (36)):     x = (s, y, theta), u = (V, omega, Z_1..Z_K)
 * f1 = V cos(e)/D, f2 = V sin(e)  (and theta' = omega for J3)
 
-    J1: L = Cy y² + Ctheta e² + CV (V - Vt)² - Cz sum ln(Z_j + zeta)
-    J2: L = Cy y² + Cyd f2² + Csd (f1 - Vt)² - Cz sum ln(Z_j + zeta)
+    J1: L = Cy (y - yr)² + Ctheta e² + CV (V - Vt)² - Cz sum ln(Z_j + zeta)
+    J2: L = Cy (y - yr)² + Cyd f2² + Csd (f1 - Vt)² - Cz sum ln(Z_j + zeta)
     J3: L = J2's L + Cthd omega²
 
+yr: the lateral reference [m] (``Observation.lateral_reference_m``, smoothed by the
+two-loop controller): a per-update parameter, constant over the horizon, packed with
+the other per-update data (``pack_params(..., lateral_reference_m)``), so the kernels
+are compiled once. yr = 0 is the paper's Cy y². Its rate ``yr'`` [m/s] is packed too:
+the C/GMRES kernel moves yr linearly across one control period and through the F_t
+forward difference (a moving parameter enters F_t like the obstacles' motion);
+``ocp_residual`` itself only reads yr.
+
 Terminal cost (not in the paper; a small documented addition that damps the
-free end of the horizon): m = CyT y_N² + CeT e_N² for J3, m = CyT y_N² for J1/J2.
+free end of the horizon): m = CyT (y_N - yr)² + CeT e_N² for J3, m = CyT (y_N - yr)²
+for J1/J2.
 
 Obstacle j (ellipse, slack form (b) of METHOD §4):
     c_j = (s - s_j - v_sj tau)²/A² + (y - y_j - v_yj tau)²/B² - 1,   c_j - Z_j² = 0
@@ -27,7 +36,7 @@ a1 = 2 Csd (f1 - Vt) + p_s, a2 = 2 Cyd f2 + p_y (J2/J3; for J1 a1 = p_s, a2 = p_
 
     H_s = a1 (V kappa sin e / D + V y kappa' cos e / D²) - a2 V kappa cos e
           + sum mu_j dc_j/ds   (- 2 Ctheta e kappa for J1)
-    H_y = 2 Cy y + a1 V kappa cos e / D² + sum mu_j dc_j/dy
+    H_y = 2 Cy (y - yr) + a1 V kappa cos e / D² + sum mu_j dc_j/dy
     H_theta = -a1 V sin e / D + a2 V cos e        (+ 2 Ctheta e for J1's input theta)
     H_V = a1 cos e / D + a2 sin e                 (+ 2 CV (V - Vt) for J1)
     H_omega = 2 Cthd omega + p_theta              (J3)
@@ -61,7 +70,9 @@ COSTS = ("J1", "J2", "J3")
 # Indices into the packed parameter vector.
 _P_COST, _P_CY, _P_CYD, _P_CSD, _P_CTHD, _P_CTH, _P_CV, _P_CZ, _P_ZETA = range(9)
 _P_CYT, _P_CET, _P_VT, _P_SCALE = 9, 10, 11, 12
-N_PACKED = 13
+_P_YREF, _P_YREFD = 13, 14  # lateral reference yr [m] and its rate [m/s] (C/GMRES only)
+_P_CYR = 15  # rate of Cy [1/(m² s²)] when the caller schedules it (C/GMRES only)
+N_PACKED = 16
 # Fast-math flags for the hot kernels: no 'nnan'/'ninf', so non-finite checks stay valid.
 _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
 # Obstacle table columns: s, y, v_s, v_y, A, B, active, barrier weight w, dw/dt.
@@ -196,11 +207,20 @@ def stage_times(params: OuterParams, horizon_s: float | None = None) -> np.ndarr
     return stage_fractions(params) * (params.horizon_s if horizon_s is None else horizon_s)
 
 
-def pack_params(params: OuterParams, target_speed_mps: float) -> np.ndarray:
-    """Packed float vector for the compiled kernels (target speed included)."""
+def pack_params(params: OuterParams, target_speed_mps: float,
+                lateral_reference_m: float = 0.0, lateral_reference_rate_mps: float = 0.0,
+                lateral_weight: float | None = None, lateral_weight_rate: float = 0.0,
+                ) -> np.ndarray:
+    """Packed float vector for the compiled kernels (per-update data included).
+
+    target_speed_mps: Vt; lateral_reference_m: yr in Cy (y - yr)² and CyT (y_N - yr)²;
+    lateral_weight: Cy of this update (None: params.c_y; a caller may schedule it);
+    the rates yr' and Cy' are used by :func:`controllers.cgmres_outer.cgmres_updates`
+    to move yr and Cy across a control period (ignored by the residual itself).
+    """
     out = np.zeros(N_PACKED)
     out[_P_COST] = params.cost_id
-    out[_P_CY] = params.c_y
+    out[_P_CY] = params.c_y if lateral_weight is None else lateral_weight
     out[_P_CYD] = params.c_ydot
     out[_P_CSD] = params.c_sdot
     out[_P_CTHD] = params.c_thetadot
@@ -212,6 +232,9 @@ def pack_params(params: OuterParams, target_speed_mps: float) -> np.ndarray:
     out[_P_CET] = params.c_e_terminal
     out[_P_VT] = target_speed_mps
     out[_P_SCALE] = 1.0 if params.row_scaling else 0.0
+    out[_P_YREF] = lateral_reference_m
+    out[_P_YREFD] = lateral_reference_rate_mps
+    out[_P_CYR] = lateral_weight_rate
     return out
 
 
@@ -321,6 +344,7 @@ def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,
     f2_v = se
     vt = prm[_P_VT]
     cy = prm[_P_CY]
+    ey = y - prm[_P_YREF]
     ps = p[0]
     py = p[1]
     pth = p[2]
@@ -329,9 +353,9 @@ def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,
         cv = prm[_P_CV]
         a1 = ps
         a2 = py
-        hval = cy * y * y + cth * e * e + cv * (v - vt) ** 2
+        hval = cy * ey * ey + cth * e * e + cv * (v - vt) ** 2
         hs = -2.0 * cth * e * kap + a1 * f1_s + a2 * f2_s
-        hy = 2.0 * cy * y + a1 * f1_y
+        hy = 2.0 * cy * ey + a1 * f1_y
         hth = 0.0
         hu_out[0] = 2.0 * cth * e + a1 * f1_th + a2 * f2_th
         hu_out[1] = 2.0 * cv * (v - vt) + a1 * f1_v + a2 * f2_v
@@ -340,9 +364,9 @@ def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,
         cyd = prm[_P_CYD]
         a1 = 2.0 * csd * (f1 - vt) + ps
         a2 = 2.0 * cyd * f2 + py
-        hval = cy * y * y + cyd * f2 * f2 + csd * (f1 - vt) ** 2
+        hval = cy * ey * ey + cyd * f2 * f2 + csd * (f1 - vt) ** 2
         hs = a1 * f1_s + a2 * f2_s
-        hy = 2.0 * cy * y + a1 * f1_y
+        hy = 2.0 * cy * ey + a1 * f1_y
         if cost == 3:
             cthd = prm[_P_CTHD]
             hval += cthd * om * om
@@ -408,7 +432,7 @@ def terminal_eval(x: np.ndarray, prm: np.ndarray, meta: np.ndarray, coef: np.nda
     """Terminal cost m(x_N) and its gradient (3,)."""
     cost = int(prm[_P_COST])
     cyt = prm[_P_CYT]
-    y = x[1]
+    y = x[1] - prm[_P_YREF]
     mx_out[0] = 0.0
     mx_out[1] = 2.0 * cyt * y
     mx_out[2] = 0.0
@@ -655,10 +679,11 @@ class SpmmProblem:
 
     def residual(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray, target_speed: float,
                  horizon: float | None = None, tshift: float = 0.0, scaled: bool = False,
+                 lateral_reference_m: float = 0.0,
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(F, states (N+1, 3), costates (N+1, 3)); F unscaled unless ``scaled``."""
         n = self.params.n_stages
-        prm = pack_params(self.params, target_speed)
+        prm = pack_params(self.params, target_speed, lateral_reference_m)
         prm[_P_SCALE] = 1.0 if scaled else 0.0
         xs = np.empty((n + 1, 3))
         ps = np.empty((n + 1, 12))
@@ -670,17 +695,19 @@ class SpmmProblem:
 
     def objective(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray, target_speed: float,
                   horizon: float | None = None, tshift: float = 0.0,
-                  with_multipliers: bool = False) -> float:
+                  with_multipliers: bool = False, lateral_reference_m: float = 0.0) -> float:
         return float(ocp_objective(np.ascontiguousarray(uvec, dtype=np.float64),
                                    np.asarray(x0, dtype=np.float64),
                                    float(horizon or self.params.horizon_s), float(tshift),
-                                   pack_params(self.params, target_speed), obs, self.w,
+                                   pack_params(self.params, target_speed, lateral_reference_m),
+                                   obs, self.w,
                                    self.meta, self.coef, with_multipliers))
 
     def initial_guess(self, x0: np.ndarray, obs: np.ndarray, target_speed: float,
-                      tshift: float = 0.0) -> np.ndarray:
+                      tshift: float = 0.0, lateral_reference_m: float = 0.0) -> np.ndarray:
         u = np.empty(self.params.n_unknowns)
         stage_init(np.asarray(x0, dtype=np.float64), float(tshift),
-                   pack_params(self.params, target_speed), obs, self.meta, self.coef,
+                   pack_params(self.params, target_speed, lateral_reference_m), obs,
+                   self.meta, self.coef,
                    self.params.n_stages, u)
         return u

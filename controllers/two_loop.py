@@ -7,10 +7,65 @@ Per control period (``step``):
 2. outer loop (C/GMRES by default, ``outer = "cgmres"``; any
    :class:`controllers.outer_protocol.OuterSolver` via ``outer_factory``):
    ``sub_updates`` continuation updates ending at the current state;
+   The runner's lateral reference (``Observation.lateral_reference_m``, a step to
+   the neighbour lane's centre while passing, back to 0 afterwards) is smoothed
+   before it reaches the OCP's Cy (y - yr)² (see "Lateral reference" below);
 3. inner loop (``controllers.inner_loop``): conversion (13)(14) + feed-forward,
    STVM preview of Np steps, corrections (38)(39), sum (40)(41);
 4. a non-finite command (never expected) is replaced by lane-keeping braking and
    flagged as a fallback.
+
+Lateral reference
+-----------------
+C/GMRES tracks a *moving* optimum: a step in a parameter is a step in the residual F
+(E spikes, and the first plans after it are far from optimal). The runner's step
+r_raw(t) is therefore shaped in two stages, updated every control period:
+
+1. rate limiter: r(t) moves toward r_raw at most min(``lateral_ref_rate_mps``,
+   V ``lateral_ref_heading_rad``) [m/s] (3.5 m in 2.3 s at the default 1.5 m/s; V
+   the measured speed: a car slower than 15 m/s cannot follow that rate with a
+   sensible heading, and at standstill -- stopped behind a stalled car until the
+   neighbour lane clears -- a moving reference made E grow to the fallback level
+   in SUMO's dense-traffic curve and the restart jerked); with C/GMRES, also times
+   the horizon's relative length 1 - exp(-horizon_growth_rate t) after the first
+   step (a reference set at the very first step on the R = 400 m curve at 30 m/s
+   peaked at 4.3 m/s² with the short early horizon);
+2. critically damped second-order filter with time constant T_f =
+   ``lateral_ref_filter_s`` [s]:  yr'' = (r - yr)/T_f² - 2 yr'/T_f.
+
+yr, yr' and yr'' are continuous (a ramp into this filter has yr'' = v t e^(-t/T_f)/T_f²
+at its start, peak v/(e T_f) ≈ 2.8 m/s² at the defaults (1.5 m/s, 0.2 s), and the
+same at its end; the delay is 2 T_f = 0.4 s). The OCP smooths further (the car's
+peak lateral acceleration from the lane change alone was ~1.5 m/s² at 20-30 m/s).
+Tuning (plant-only passes at 20/25/30 m/s, straight and R = 400 m, and SUMO's
+acceptance catalog): a slower ramp (1.2 m/s, T_f 0.4 s) left the car 0.6 m short
+of the target lane when the reference was reset 15 m past the car at 30 m/s, and
+1.3 m/s left the S-curve return 0.32 m off at the end of its run; faster ones
+(2.5 m/s) overshot the target lane and took the curve case over 4 m/s².
+A change of r_raw mid-transition (e.g. the pass is aborted) just
+redirects the ramp, continuity is kept. T_f = 0 gives the rate limiter alone
+(yr' steps). The filter is integrated with semi-implicit Euler sub-steps <= T_f/10.
+yr starts at the measured lateral offset, at rest (a reference already set at the
+first step is then approached like any step). yr is handed to the outer solver
+(C/GMRES moves it linearly between consecutive updates, inside its F_t term) and
+logged as ``lateral_ref_m`` (yr' as ``lateral_ref_rate_mps``).
+
+Weight schedule: Cy = c_y + (c_y_lateral_ref - c_y) (1 - cos(pi phi))/2 (C¹ in time:
+a kink in Cy(t) left E ~ 0.17 when the blend ended), phi in [0, 1] ramping
+linearly over ``lateral_weight_time_s`` toward 1 while a lateral reference is
+engaged and toward 0 otherwise (logged as ``lateral_weight``). Engaged: from
+r_raw != 0 until, after r_raw is back at 0, both yr and the car are on it (within
+5 cm and 10 cm): dropping the weight while the car still lagged 0.7 m behind yr
+made the end of the return slow (SUMO, S-curve at 20 m/s). Why: the log barrier
+pushes the plan away from an obstacle with a force ~ Cz/distance even when it is
+well clear; with the paper's Cy = 1 that push sets the car ~0.5-1.3 m beyond the
+target lane while passing, so the reference needs a stiff weight (20). But with
+no reference (r_raw = 0: obstacles the runner does not ask to pass, follow mode,
+the paper's scenarios) the barrier alone must be able to move the car out of the
+lane: with Cy = 20 everywhere it cannot (the plant hit the stalled car in our
+tests). Cy moves continuously and C/GMRES carries its rate in F_t like yr's.
+
+A non-finite r_raw holds the previous one.
 
 All parameters live in :class:`TwoLoopParams` (flat, with units), validated in
 ``__post_init__``; :func:`make_two_loop` builds a controller from flat catalog
@@ -62,7 +117,16 @@ class TwoLoopParams:
       preview (on/off), n_preview (Np), preview_dt_s [s], lookahead_s [s];
       k_ps [rad/rad], k_pv [N m s/m], k_pvc [N m/m], k_psc [rad/m],
       k_isc [rad/(m s)], integral_limit_ms [m s]; feedforward (on/off).
-    Obstacle policy (``obstacle_policy``): detection_distance_m, rear_range_m,
+    Lateral reference (see module docstring): lateral_ref_rate_mps [m/s] (> 0) rate
+      limit of the runner's step, lateral_ref_filter_s [s] (>= 0) time constant of the
+      critically damped second-order filter after it; lateral_ref_heading_rad
+      [rad] (> 0) the rate limit is at most V times it; c_y_lateral_ref [1/(m² s)]
+      (>= 0) Cy while a lateral reference is engaged, lateral_weight_time_s [s] (> 0)
+      its blend time from/to c_y.
+    Obstacle policy (``obstacle_policy``): detection_distance_m (100 m: at 80 m and
+      30 m/s the horizon's end, 72 m ahead, was already inside a stalled car's ellipse
+      (A ≈ 10.5 m) when it entered the problem: E jumped to 5-20 and the car braked),
+      rear_range_m,
       margin_long_m, margin_lat_m, offset_m, max_obstacles (= OCP slots),
       moving_obstacles.
     """
@@ -106,7 +170,12 @@ class TwoLoopParams:
     k_isc: float = 0.05
     integral_limit_ms: float = 5.0
     feedforward: bool = True
-    detection_distance_m: float = 80.0
+    lateral_ref_rate_mps: float = 1.5
+    lateral_ref_filter_s: float = 0.2
+    lateral_ref_heading_rad: float = 0.1
+    c_y_lateral_ref: float = 20.0
+    lateral_weight_time_s: float = 1.0
+    detection_distance_m: float = 100.0
     rear_range_m: float = 10.0
     margin_long_m: float = 2.0
     margin_lat_m: float = 0.4
@@ -133,14 +202,16 @@ class TwoLoopParams:
                 raise bad(f.name, "true or false")
         positive = ("horizon_s", "zeta_s", "fd_step", "c_z", "zeta", "preview_dt_s",
                     "horizon_growth_rate", "target_accel_mps2", "target_decel_mps2", "z_guard",
-                    "fallback_residual", "fallback_decel_mps2", "k_ps", "obstacle_fade_s")
+                    "fallback_residual", "fallback_decel_mps2", "k_ps", "obstacle_fade_s",
+                    "lateral_ref_rate_mps", "lateral_weight_time_s", "lateral_ref_heading_rad")
         for key in positive:
             if not getattr(self, key) > 0:
                 raise bad(key, "a number > 0")
         nonneg = ("c_y", "c_ydot", "c_sdot", "c_thetadot", "c_theta", "c_v", "c_y_terminal",
                   "c_e_terminal", "fallback_hold_s", "lookahead_s", "k_pv", "k_pvc", "k_psc",
                   "k_isc", "integral_limit_ms", "detection_distance_m", "rear_range_m",
-                  "margin_long_m", "margin_lat_m", "offset_m")
+                  "margin_long_m", "margin_lat_m", "offset_m", "lateral_ref_filter_s",
+                  "c_y_lateral_ref")
         for key in nonneg:
             if not getattr(self, key) >= 0:
                 raise bad(key, "a number >= 0")
@@ -236,6 +307,10 @@ class TwoLoopController:
         self._integral = 0.0
         self._t_prev: float | None = None
         self.plan: OuterPlan | None = None
+        # Lateral reference shaping: [raw target, ramp r, yr, yr', weight blend phi,
+        # engaged flag] (NaN: not started).
+        self._yref = np.full(6, np.nan)
+        self._t_first = 0.0
 
     # ----------------------------------------------------------------- protocol
     def reset(self, context: ScenarioContext) -> None:
@@ -263,6 +338,7 @@ class TwoLoopController:
         self._integral = 0.0
         self._t_prev = None
         self.plan = None
+        self._yref[:] = np.nan
         # Load the inner loop's compiled kernels now rather than in the first step.
         meta, coef, knots = self.path.tables()
         n = self.outer_params.n_stages
@@ -299,8 +375,17 @@ class TwoLoopController:
         st = np.asarray(observation.state, dtype=np.float64)
         x0 = self._frenet_state(st)
         dt = self._dt if self._t_prev is None else max(observation.t_s - self._t_prev, 1e-6)
+        if self._t_prev is None:
+            self._t_first = float(observation.t_s)
+        y_ref = self._lateral_reference(float(observation.lateral_reference_m),
+                                        None if self._t_prev is None else dt, float(x0[1]),
+                                        math.hypot(float(st[3]), float(st[4])),
+                                        float(observation.t_s) - self._t_first)
+        blend = 0.5 * (1.0 - math.cos(math.pi * float(self._yref[4])))  # C¹ in time
+        c_y = p.c_y + (p.c_y_lateral_ref - p.c_y) * blend
         plan = self.outer.update(observation.t_s, x0, observation.obstacles,
-                                 float(observation.target_speed_mps), self._dt)
+                                 float(observation.target_speed_mps), self._dt,
+                                 lateral_reference_m=y_ref, lateral_weight=c_y)
         self.plan = plan
         t_inner0 = time.perf_counter()
         meta, coef, knots = self.path.tables()
@@ -347,9 +432,59 @@ class TwoLoopController:
             "preview_err_t_m": pe_t,
             "preview_err_n_m": pe_n,
             "outer_updates": float(p.sub_updates if p.outer == "cgmres" else 1),
+            "lateral_ref_m": y_ref,
+            "lateral_ref_rate_mps": float(self._yref[3]),
+            "lateral_weight": c_y,
         }
         return Command(steer_rad=float(steer), torque_nm=float(torque), diagnostics=diag,
                        arrays={"plan_xy_m": plan_xy, "preview_xy_m": self._preview_xy.copy()})
+
+    def _lateral_reference(self, raw: float, dt: float | None, y_now: float,
+                           speed: float, since_start_s: float = math.inf) -> float:
+        """Advance the lateral-reference shaping by dt; returns yr [m].
+
+        dt None (first step): the shaper starts at the measured offset y_now, at rest.
+        State: [raw target, ramp r, yr, yr', weight blend phi, engaged flag].
+        """
+        st = self._yref
+        if math.isfinite(raw):
+            st[0] = raw
+        elif not math.isfinite(st[0]):
+            st[0] = 0.0
+        p = self.params
+        y_ok = y_now if math.isfinite(y_now) else 0.0
+        if dt is None or not math.isfinite(st[2]):
+            st[1] = st[2] = y_ok
+            st[3] = 0.0
+            st[5] = 1.0 if st[0] != 0.0 else 0.0
+            st[4] = st[5]
+            return float(st[2])
+        # Engaged from a non-zero reference until both yr and the car are back on it.
+        engaged = st[0] != 0.0 or (st[5] > 0.5 and (abs(st[2] - st[0]) > 0.05
+                                                     or abs(y_ok - st[0]) > 0.1))
+        st[5] = 1.0 if engaged else 0.0
+        step = dt / p.lateral_weight_time_s
+        st[4] = min(float(st[4]) + step, 1.0) if engaged else max(float(st[4]) - step, 0.0)
+        tf = p.lateral_ref_filter_s
+        n_sub = 1 if tf <= 0.0 else max(1, math.ceil(dt / (0.1 * tf)))
+        h = dt / n_sub
+        v = speed if math.isfinite(speed) and speed > 0.0 else 0.0
+        rate = min(p.lateral_ref_rate_mps, v * p.lateral_ref_heading_rad)
+        if p.outer == "cgmres":  # while the horizon grows, at its relative length
+            rate *= 1.0 - math.exp(-p.horizon_growth_rate * max(since_start_s, 0.0))
+        max_step = rate * h
+        r, yr, yd = float(st[1]), float(st[2]), float(st[3])
+        for _ in range(n_sub):
+            r_prev = r
+            r += min(max(st[0] - r, -max_step), max_step)
+            if tf <= 0.0:
+                yd = (r - r_prev) / h
+                yr = r
+            else:
+                yd += h * ((r - yr) / (tf * tf) - 2.0 * yd / tf)
+                yr += h * yd
+        st[1], st[2], st[3] = r, yr, yd
+        return yr
 
     def parameters(self) -> dict[str, Any]:
         out: dict[str, Any] = {"name": self.name}

@@ -253,3 +253,75 @@ def test_cgmres_solution_is_ipopts_local_minimum() -> None:
     # Ipopt's multipliers of dtau (c - Z²) = 0 are our mu (sign: L = f + lambda g).
     lam = np.asarray(sol["lam_g"]).ravel()
     assert np.allclose(lam, u2[1:, 2 + k_obs], atol=1e-5)
+
+
+def _follow_own_plan(outer: CgmresOuter, y_ref_fn: object, t_end: float = 6.0,
+                     dt: float = 0.02) -> tuple[list[float], np.ndarray]:
+    """The SPMM follows its own plan (next state = plan at tau = dt); returns E(t), last plan."""
+    x = np.array([0.0, 0.0, 0.0])
+    outer.reset(x, 25.0)
+    es = []
+    plan = None
+    for k in range(int(round(t_end / dt))):
+        t = k * dt
+        plan = outer.update(t, x, Obstacles.empty(), 25.0, dt,
+                            lateral_reference_m=y_ref_fn(t))  # type: ignore[operator]
+        es.append(plan.residual)
+        x = np.array([np.interp(dt, plan.stage_times_s, plan.states[:, c]) for c in range(3)])
+    assert plan is not None
+    return es, plan.states
+
+
+def test_moving_lateral_reference_is_tracked_without_residual_jump() -> None:
+    """yr enters F_t (C/GMRES moves it linearly across the period): a smooth yr(t) keeps
+    E at its stationary level and the plan settles on yr; a step in yr spikes E."""
+    path = FrenetPath.cached(STRAIGHT)
+
+    def smooth(t: float) -> float:  # cosine 0 -> 3.5 m over 3 s from t = 2 s
+        a = min(max((t - 2.0) / 3.0, 0.0), 1.0)
+        return 3.5 * 0.5 * (1.0 - math.cos(math.pi * a))
+
+    es_smooth, states = _follow_own_plan(CgmresOuter(path, OuterParams()), smooth, 8.0)
+    es_step, _ = _follow_own_plan(CgmresOuter(path, OuterParams()),
+                                  lambda t: 3.5 if t >= 2.0 else 0.0, 8.0)
+    assert max(es_smooth) < 0.05, max(es_smooth)
+    assert max(es_step) > 20.0 * max(es_smooth), (max(es_step), max(es_smooth))
+    assert np.all(np.abs(states[:, 1] - 3.5) < 0.1)  # settled on the reference
+
+
+@pytest.mark.parametrize("cost", ["J3", "J1"])
+def test_cgmres_converges_with_lateral_reference(cost: str) -> None:
+    """Fixed problem with yr = 3.5 m and a scheduled Cy: E -> 0 at a root of F (scipy)."""
+    path = FrenetPath.cached(STRAIGHT)
+    params = OuterParams(cost=cost, n_obstacles=1, horizon_growth_rate=5.0, c_y_terminal=0.5)
+    obs = obstacle_table(1)
+    obs[0] = [50.0, -0.3, 0.0, 0.0, 6.8, 2.3, 1.0, 1.0, 0.0]
+    x0 = np.array([10.0, 0.0, 0.0])
+    prob = SpmmProblem(path, params)
+    u = prob.initial_guess(x0, obs, 25.0, lateral_reference_m=3.5)
+    udot = np.zeros_like(u)
+    meta, coef, _ = path.tables()
+    hz = np.array([0.0, params.horizon_s, params.horizon_growth_rate])
+    cfg = np.array([params.k_max, params.zeta_s, params.fd_step, params.z_guard, params.zeta])
+    from controllers.cgmres_outer import work_size
+
+    work = np.zeros(work_size(u.size, params.n_stages, params.k_max))
+    xs = np.zeros((params.n_stages + 1, 3))
+    stats = np.zeros(4)
+    prm = pack_params(params, 25.0, 3.5, lateral_weight=5.0)
+    prm_before = prm.copy()
+    t = 0.0
+    while t < 6.0:
+        cgmres_updates(u, udot, x0, x0, t, 0.005, 1, hz, 0.0, prm, obs, prob.w, meta, coef,
+                       cfg, work, xs, stats)
+        t += 0.005
+    assert np.array_equal(prm, prm_before)  # the kernel restores its parameters
+    assert stats[0] < 1e-7, stats[0]
+    prm[12] = 0.0
+    f = np.empty(u.size)
+    from controllers.spmm_ocp import ocp_residual
+
+    ocp_residual(u, x0, params.horizon_s, 0.0, prm, obs, prob.w, meta, coef, xs,
+                 np.empty((params.n_stages + 1, 12)), f)
+    assert np.max(np.abs(f)) < 1e-7
+    assert xs[-1, 1] > 2.5  # pulled toward the reference lane

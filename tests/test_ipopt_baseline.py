@@ -213,30 +213,41 @@ def test_path_lookup_reproduces_the_frenet_path_exactly() -> None:
     assert np.abs(path.kappa(s)).max() > 2e-3  # the test path does curve
 
 
-@pytest.mark.parametrize(("kind", "x0", "obs_s"), [
-    ("straight", (0.0, 0.0, 0.0), 40.0),
-    ("curved", (190.0, 0.2, 0.01), 235.0),
+@pytest.mark.parametrize(("kind", "x0", "obs_s", "y_ref", "c_y"), [
+    ("straight", (0.0, 0.0, 0.0), 40.0, 0.0, None),
+    ("curved", (190.0, 0.2, 0.01), 235.0, 0.0, None),
+    ("straight", (0.0, 2.8, 0.0), 40.0, 3.5, 20.0),
+    ("curved", (190.0, 2.8, 0.01), 235.0, 3.5, 20.0),
 ])
 def test_ipopt_solution_zeroes_the_cgmres_residual(kind: str, x0: tuple[float, ...],
-                                                    obs_s: float) -> None:
+                                                    obs_s: float, y_ref: float,
+                                                    c_y: float | None) -> None:
     """Ipopt's KKT point is a root of C/GMRES's hand-derived F: the same discretised OCP.
 
     U = (V, omega, Z, mu = lam_g / dtau) from Ipopt, fed to spmm_ocp's residual with
     the real FrenetPath tables: ||F||inf at Ipopt's tolerance, not at the bspline
     lookup's accuracy or a formulation mismatch (those would leave O(1e-3..1)).
+    Also with a lateral reference yr and a per-update Cy (``lateral_weight``) in
+    Ipopt, and the same values as data of spmm_ocp's residual (started in the
+    target lane's direction so that Ipopt's |omega| bound stays inactive: from y = 0
+    it is active at stage 0 and F_omega != 0 there, by construction).
     """
-    params = OuterParams()
+    params = OuterParams(c_y_terminal=0.5)
     path = _frenet_path(kind)
     x = np.asarray(x0)
     obs = _obstacle(obs_s)
     outer = _outer(path, params, tol=1e-10)
     outer.reset(x, VT)
-    plan = outer.update(0.0, x, obs, VT, PERIOD)
+    plan = outer.update(0.0, x, obs, VT, PERIOD, lateral_reference_m=y_ref, lateral_weight=c_y)
     assert not plan.fallback
     table = obstacle_table(params.n_obstacles)
     table[0, :6] = _pack_obstacles(obs)[0]
     table[0, 6] = 1.0
-    f, xs, _ = SpmmProblem(path, params).residual(outer.stage_unknowns(), x, table, VT)
+    ref_params = params if c_y is None else OuterParams(c_y_terminal=0.5, c_y=c_y)
+    f, xs, _ = SpmmProblem(path, ref_params).residual(outer.stage_unknowns(), x, table, VT,
+                                                      lateral_reference_m=y_ref)
+    if y_ref:
+        assert abs(plan.states[-1, 1] - y_ref) < 0.3  # the plan settles on the reference
     assert np.abs(xs - plan.states).max() < 1e-6  # same Euler rollout (exact geometry)
     assert np.abs(f).max() < 1e-6, np.abs(f).max()
     c = ellipse_values(plan.states, plan.stage_times_s, _pack_obstacles(obs))[:, 0]

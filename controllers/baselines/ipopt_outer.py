@@ -16,8 +16,12 @@ Augmented SPMM (36), Frenet frame, x = (s, y, theta), u = (V, omega)::
 with ``dtau_i = diff(stage_times(params))`` (uniform or Chebyshev, as C/GMRES), and::
 
     J = sum_i L(x_i, u_i, Z_i, tau_i) dtau_i + m(x_N)
-    L = Cy y^2 + Cyd f2^2 + Csd (f1 - Vt)^2 + Cwd omega^2 - Cz sum_j ln(Z_ij + zeta)
-    m = CyT y_N^2 + CeT (theta_N - gamma(s_N))^2        (spmm_ocp's terminal cost)
+    L = Cy (y - yr)^2 + Cyd f2^2 + Csd (f1 - Vt)^2 + Cwd omega^2 - Cz sum_j ln(Z_ij + zeta)
+    m = CyT (y_N - yr)^2 + CeT (theta_N - gamma(s_N))^2   (spmm_ocp's terminal cost)
+
+yr: the lateral reference of the update (``update(..., lateral_reference_m=)``), an NLP
+parameter constant over the horizon, as in C/GMRES (0: the paper's Cy y^2); Cy may be
+overridden per update (``lateral_weight=``), also an NLP parameter.
 
 with the weights of ``controllers.spmm_ocp.OuterParams`` (c_y, c_ydot, c_sdot,
 c_thetadot, c_z, zeta, c_y_terminal, c_e_terminal). Differences from CgmresOuter,
@@ -297,6 +301,7 @@ def _build_nlp(lookup: PathLookup, n: int, k: int, formulation: str,
     p_dt = sx.sym("dtau", n)
     p_obs = sx.sym("obs", _OBS_COLS * k)
     p_w = sx.sym("w", _N_WEIGHTS)
+    p_yr = sx.sym("yref")
     c_y, c_yd, c_sd, c_om, c_z, zeta, t_y, t_e = (p_w[i] for i in range(_N_WEIGHTS))
 
     w: list[Any] = []
@@ -345,7 +350,7 @@ def _build_nlp(lookup: PathLookup, n: int, k: int, formulation: str,
         d = 1.0 - x_y * kap
         f1 = v * ca.cos(e) / d
         f2 = v * ca.sin(e)
-        run = c_y * x_y**2 + c_yd * f2**2 + c_sd * (f1 - p_vt) ** 2 + c_om * om**2
+        run = c_y * (x_y - p_yr) ** 2 + c_yd * f2**2 + c_sd * (f1 - p_vt) ** 2 + c_om * om**2
         for j, z in enumerate(zs):
             run = run - c_z * ca.log(z + zeta)
             gobs[i, j] = add_con(ellipse(j, x_s, x_y, tau) - z * z, 0.0, 0.0)
@@ -366,10 +371,10 @@ def _build_nlp(lookup: PathLookup, n: int, k: int, formulation: str,
     if formulation == "hard":
         for j in range(k):
             gobs[n, j] = add_con(ellipse(j, x_s, x_y, tau), 0.0, math.inf)
-    cost = cost + _terminal_cost(ca, x_s, x_y, x_th, lookup, t_y, t_e)
+    cost = cost + _terminal_cost(ca, x_s, x_y - p_yr, x_th, lookup, t_y, t_e)
 
     nlp = {"x": ca.vertcat(*w), "f": cost, "g": ca.vertcat(*g),
-           "p": ca.vertcat(p_x0, p_vt, p_dt, p_obs, p_w)}
+           "p": ca.vertcat(p_x0, p_vt, p_dt, p_obs, p_w, p_yr)}
     opts = {"ipopt": dict(ipopt_opts), "print_time": False, "error_on_fail": False,
             "record_time": False}
     solver = ca.nlpsol(f"ipopt_outer_n{n}_k{k}_{formulation}", "ipopt", nlp, opts)
@@ -380,7 +385,7 @@ def _build_nlp(lookup: PathLookup, n: int, k: int, formulation: str,
 
 def _terminal_cost(ca: Any, s: Any, y: Any, th: Any, lookup: PathLookup, t_y: Any,
                    t_e: Any) -> Any:
-    """m(x_N) = term_y y_N^2 + term_e (theta_N - gamma(s_N))^2 (zero with zero weights)."""
+    """m(x_N) = term_y y^2 + term_e (theta_N - gamma(s_N))^2 (y: y_N - yr)."""
     e = th - lookup.gamma_ca(s)
     return t_y * y**2 + t_e * e**2
 
@@ -537,8 +542,13 @@ class IpoptOuter:
     # -- one update ---------------------------------------------------------
 
     def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,
-               target_speed_mps: float, dt_s: float) -> OuterPlan:
+               target_speed_mps: float, dt_s: float,
+               lateral_reference_m: float = 0.0,
+               lateral_weight: float | None = None) -> OuterPlan:
         x0 = np.asarray(x0, dtype=np.float64).reshape(3)
+        yr = float(lateral_reference_m)
+        if not math.isfinite(yr):
+            raise ValueError(f"lateral_reference_m must be finite, got {lateral_reference_m!r}")
         vt = self._ramped_target(t_s, float(target_speed_mps))
         k = obstacles.count
         obs = _pack_obstacles(obstacles)
@@ -561,7 +571,10 @@ class IpoptOuter:
         zi = nlp.iz[nlp.iz >= 0]
         lbx[zi] = 0.0
         w0 = np.clip(w0, lbx, ubx)
-        p = np.concatenate([x0, [vt], self.dtau, obs.reshape(-1), self.weights.as_array()])
+        wts = self.weights.as_array()
+        if lateral_weight is not None:
+            wts[0] = float(lateral_weight)  # Cy of this update (scheduled by the caller)
+        p = np.concatenate([x0, [vt], self.dtau, obs.reshape(-1), wts, [yr]])
         args: dict[str, Any] = {"x0": w0, "p": p, "lbx": lbx, "ubx": ubx,
                                 "lbg": nlp.lbg, "ubg": nlp.ubg}
         if warm:
