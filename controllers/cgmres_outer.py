@@ -54,6 +54,7 @@ from controllers.spmm_ocp import (
     _P_YREF,
     _P_YREFD,
     OuterParams,
+    TargetSpeedRamp,
     activate_slot,
     deactivate_slot,
     obstacle_table,
@@ -249,6 +250,8 @@ class CgmresOuter:
         self._x_prev = np.zeros(3)
         self._hz = np.array([0.0, params.horizon_s, params.horizon_growth_rate])
         self._vt = 0.0
+        self._ramp = TargetSpeedRamp(params.target_accel_mps2, params.target_decel_mps2,
+                                     params.target_jerk_mps3)
         self._yr = 0.0  # lateral reference at the previous update [m]
         self._cy = params.c_y  # Cy at the previous update
         self._fallback_until = -math.inf
@@ -278,6 +281,7 @@ class CgmresOuter:
         self._initialised = False
         self._x_prev = np.asarray(x0, dtype=np.float64).copy()
         self._vt = float(target_speed_mps)
+        self._ramp.reset(self._vt)
         self._yr = 0.0
         self._cy = self.params.c_y
         self._obs = obstacle_table(self.params.n_obstacles)
@@ -390,12 +394,9 @@ class CgmresOuter:
         cy = p.c_y if lateral_weight is None else float(lateral_weight)
         if not (math.isfinite(cy) and cy >= 0.0):
             raise ValueError(f"lateral_weight must be finite and >= 0, got {lateral_weight!r}")
-        # Rate-limited target speed (the paper ramps Vtarget).
+        # Jerk-limited target speed (the paper ramps Vtarget).
         if self._initialised:
-            elapsed = max(t_s - self._t_prev, 0.0)
-            dv = float(target_speed_mps) - self._vt
-            dv = min(max(dv, -p.target_decel_mps2 * elapsed), p.target_accel_mps2 * elapsed)
-            self._vt += dv
+            self._vt = self._ramp.update(float(target_speed_mps), max(t_s - self._t_prev, 0.0))
         prm = pack_params(p, self._vt, yr, lateral_weight=cy)
         horizon_prev = self.horizon_now(self._t_prev) if self._initialised else 0.0
         self._match_obstacles(t_s, obstacles, horizon_prev, prm)

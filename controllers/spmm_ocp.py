@@ -67,6 +67,53 @@ from controllers.frenet import FrenetPath, path_gamma
 
 COSTS = ("J1", "J2", "J3")
 
+
+class TargetSpeedRamp:
+    """Jerk-limited target speed V_t(t) for the OCP, shared by every outer solver.
+
+    Time-optimal under |a| <= accel/decel and |da/dt| <= j: with e = set point - V_t
+    and e_stop = e - 1.5 a dt - a |a| / (2 j) (what is left once the ramp's
+    acceleration a has been brought back to zero at the jerk limit, discretely), a is
+    driven at most j dt per
+    update towards +accel if e_stop > 0, else -decel; V_t <- V_t + a dt. Once the
+    set point is within one step and |a| <= j dt, V_t lands on it with a = 0.
+
+    V_t, a and hence the OCP's cost change continuously, so neither the continuation
+    nor the car sees a step in speed or acceleration (a bare rate limit switches the
+    acceleration on at once: a jerk spike at every start and braking onset).
+    """
+
+    def __init__(self, accel_mps2: float, decel_mps2: float, jerk_mps3: float) -> None:
+        self.accel_mps2 = float(accel_mps2)
+        self.decel_mps2 = float(decel_mps2)
+        self.jerk_mps3 = float(jerk_mps3)
+        self.speed_mps = 0.0
+        self.ramp_accel_mps2 = 0.0
+
+    def reset(self, speed_mps: float) -> None:
+        self.speed_mps = float(speed_mps)
+        self.ramp_accel_mps2 = 0.0
+
+    def update(self, set_speed_mps: float, dt_s: float) -> float:
+        """Advance by ``dt_s`` towards ``set_speed_mps``; returns V_t [m/s]."""
+        if dt_s <= 0.0:
+            return self.speed_mps
+        target = float(set_speed_mps)
+        a = self.ramp_accel_mps2
+        step = self.jerk_mps3 * dt_s
+        err = target - self.speed_mps
+        if abs(err) <= step * dt_s and abs(a) <= step:
+            self.speed_mps, self.ramp_accel_mps2 = target, 0.0
+            return self.speed_mps
+        # Left over after this step (a dt) and after ramping a to zero from the next one
+        # (a|a|/2j, plus half a step for the discrete ramp).
+        e_stop = err - 1.5 * a * dt_s - a * abs(a) / (2.0 * self.jerk_mps3)
+        a_goal = self.accel_mps2 if e_stop > 0.0 else -self.decel_mps2
+        a += min(max(a_goal - a, -step), step)
+        self.ramp_accel_mps2 = a
+        self.speed_mps = max(self.speed_mps + a * dt_s, 0.0)
+        return self.speed_mps
+
 # Indices into the packed parameter vector.
 _P_COST, _P_CY, _P_CYD, _P_CSD, _P_CTHD, _P_CTH, _P_CV, _P_CZ, _P_ZETA = range(9)
 _P_CYT, _P_CET, _P_VT, _P_SCALE = 9, 10, 11, 12
@@ -102,8 +149,9 @@ class OuterParams:
     sub_updates: continuation updates per control period.
     horizon_growth_rate [1/s]: T(t) = T_f (1 - exp(-rate (t - t_init))), which makes
         the t_init solution exact in closed form.
-    target_accel_mps2 / target_decel_mps2: rate limit of the target speed fed to
-        the OCP (the paper ramps Vtarget; a step would kick the continuation).
+    target_accel_mps2 / target_decel_mps2 / target_jerk_mps3: limits of the
+        target-speed ramp fed to the OCP (:class:`TargetSpeedRamp`; the paper ramps
+        Vtarget; a step would kick the continuation, an acceleration step is jerk).
     z_guard: minimum Z + zeta kept by the guard after every Euler step.
     row_scaling: C/GMRES works on D(U) F with D a diagonal estimate of F_U's
         diagonal (same roots); E is always reported on the unscaled F.
@@ -137,6 +185,7 @@ class OuterParams:
     horizon_growth_rate: float = 2.0
     target_accel_mps2: float = 1.5
     target_decel_mps2: float = 3.0
+    target_jerk_mps3: float = 2.0
     z_guard: float = 0.05
     obstacle_fade_s: float = 0.5
     row_scaling: bool = True
@@ -148,7 +197,8 @@ class OuterParams:
         if self.cost not in COSTS:
             raise ValueError(f"OuterParams.cost must be one of {COSTS}, got {self.cost!r}")
         for name in ("horizon_s", "c_z", "zeta", "zeta_s", "fd_step", "horizon_growth_rate",
-                     "target_accel_mps2", "target_decel_mps2", "z_guard", "fallback_residual",
+                     "target_accel_mps2", "target_decel_mps2", "target_jerk_mps3", "z_guard",
+                     "fallback_residual",
                      "obstacle_fade_s",
                      "fallback_decel_mps2"):
             v = getattr(self, name)

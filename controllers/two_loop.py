@@ -110,7 +110,7 @@ class TwoLoopParams:
       sub_updates per control period; c_z [1/s], zeta [-] barrier; c_y [1/(m² s)],
       c_ydot [s/m²], c_sdot [s/m²], c_thetadot [s/rad²], c_theta [1/(rad² s)],
       c_v [s/m²]; c_y_terminal [1/m²], c_e_terminal [1/rad²]; horizon_growth_rate
-      [1/s]; target_accel_mps2, target_decel_mps2 (OCP target-speed ramp);
+      [1/s]; target_accel_mps2, target_decel_mps2, target_jerk_mps3 (OCP target-speed ramp);
       z_guard [-]; obstacle_fade_s [s]; row_scaling (on/off); fallback_residual [-],
       fallback_decel_mps2, fallback_hold_s [s].
     Inner loop (see ``controllers.inner_loop``):
@@ -153,6 +153,7 @@ class TwoLoopParams:
     horizon_growth_rate: float = 2.0
     target_accel_mps2: float = 1.5
     target_decel_mps2: float = 3.0
+    target_jerk_mps3: float = 2.0
     z_guard: float = 0.05
     obstacle_fade_s: float = 0.5
     row_scaling: bool = True
@@ -201,7 +202,8 @@ class TwoLoopParams:
             if f.type == "bool" and not isinstance(v, bool):
                 raise bad(f.name, "true or false")
         positive = ("horizon_s", "zeta_s", "fd_step", "c_z", "zeta", "preview_dt_s",
-                    "horizon_growth_rate", "target_accel_mps2", "target_decel_mps2", "z_guard",
+                    "horizon_growth_rate", "target_accel_mps2", "target_decel_mps2",
+                    "target_jerk_mps3", "z_guard",
                     "fallback_residual", "fallback_decel_mps2", "k_ps", "obstacle_fade_s",
                     "lateral_ref_rate_mps", "lateral_weight_time_s", "lateral_ref_heading_rad")
         for key in positive:
@@ -243,6 +245,7 @@ class TwoLoopParams:
             zeta_s=self.zeta_s, fd_step=self.fd_step, sub_updates=self.sub_updates,
             horizon_growth_rate=self.horizon_growth_rate,
             target_accel_mps2=self.target_accel_mps2, target_decel_mps2=self.target_decel_mps2,
+            target_jerk_mps3=self.target_jerk_mps3,
             z_guard=self.z_guard, obstacle_fade_s=self.obstacle_fade_s,
             row_scaling=self.row_scaling, fallback_residual=self.fallback_residual,
             fallback_decel_mps2=self.fallback_decel_mps2, fallback_hold_s=self.fallback_hold_s)

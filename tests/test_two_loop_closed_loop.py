@@ -145,13 +145,20 @@ def test_slower_moving_car_overtaken() -> None:
 
 
 def test_follow_mode_stops_behind_blocking_car() -> None:
-    # The runner lowers the target speed to 0 when the blocking car is detected (80 m)
-    # and no side is free (pass_side 0: no offset, the ellipse sits on the lane).
+    # No side is free (pass_side 0: no offset, the ellipse sits on the lane): the runner
+    # lowers the target speed along its comfortable follow profile (suite.obstacles).
+    from suite.obstacles import GapPolicy, follow_speed_mps
+
     v0 = 20.0
+    gap_policy = GapPolicy()
     ctl = make_two_loop({})
-    tr = simulate(ctl, STRAIGHT, STALLED, duration_s=16.0, dt=DT, pass_side=0,
-                  initial_speed_mps=v0,
-                  target_speed_fn=lambda t, s: 0.0 if 150.0 - s < 80.0 else v0)
+
+    def follow(t: float, s: float) -> float:
+        bumper_gap = 150.0 - 2.4 - (s + VehicleParams().cg_to_front_bumper_m)
+        return follow_speed_mps(max(bumper_gap, 0.0), 0.0, v0, gap_policy)
+
+    tr = simulate(ctl, STRAIGHT, STALLED, duration_s=20.0, dt=DT, pass_side=0,
+                  initial_speed_mps=v0, target_speed_fn=follow)
     assert not tr["box_overlap"].any()
     # CG outside the controller's own ellipse (policy margins). The margin-free one
     # (``ellipse_c``) is 21 m long since the ellipses contain the box-sum rectangle

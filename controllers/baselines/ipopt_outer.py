@@ -106,6 +106,7 @@ import numpy as np
 
 from controllers.outer_protocol import OuterPlan
 from controllers.protocol import ConfigError, Obstacles
+from controllers.spmm_ocp import TargetSpeedRamp
 
 FORMULATIONS = ("barrier", "hard")
 
@@ -507,6 +508,8 @@ class IpoptOuter:
         self._prev: _Solution | None = None
         self._vt = 0.0
         self._vt_set = False
+        self._ramp = TargetSpeedRamp(params.target_accel_mps2, params.target_decel_mps2,
+                                     params.target_jerk_mps3)
         self._t_prev: float | None = None
         self._last_success_t: float | None = None
 
@@ -533,6 +536,7 @@ class IpoptOuter:
         self._prev = None
         self._vt = float(target_speed_mps)
         self._vt_set = True
+        self._ramp.reset(self._vt)
         self._t_prev = None
         self._last_success_t = None
         self.fallback_count = 0
@@ -656,14 +660,12 @@ class IpoptOuter:
         return self._vt
 
     def _ramped_target(self, t_s: float, target: float) -> float:
-        """Rate-limit the target speed like CgmresOuter (OuterParams.target_accel/decel)."""
+        """The jerk-limited target-speed ramp shared with CgmresOuter."""
         if self._t_prev is None:
-            return self._vt if self._vt_set else target
-        elapsed = max(float(t_s) - self._t_prev, 0.0)
-        acc = float(getattr(self.params, "target_accel_mps2", math.inf))
-        dec = float(getattr(self.params, "target_decel_mps2", math.inf))
-        dv = min(max(target - self._vt, -dec * elapsed), acc * elapsed)
-        return self._vt + dv
+            if not self._vt_set:
+                self._ramp.reset(target)
+            return self._ramp.speed_mps
+        return self._ramp.update(target, max(float(t_s) - self._t_prev, 0.0))
 
     # -- guesses, packing ---------------------------------------------------
 
