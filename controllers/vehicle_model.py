@@ -176,6 +176,14 @@ class SingleTrackPlant:
     def step(self, steer_rad: float, torque_nm: float, dt_s: float) -> np.ndarray:
         steer, torque = self.saturate(steer_rad, torque_nm)
         before = self.state
+        if before[3] <= 0.0 and torque <= 0.0:
+            # Stopped and braked: the brakes hold the car (no creeping from the RK4
+            # stages' transient negative speed).
+            self.long_acc_mps2 = 0.0
+            self.lat_acc_mps2 = 0.0
+            self.state = before.copy()
+            self.state[3:] = 0.0
+            return self.state.copy()
         after = stvm_rk4(before, steer, torque, self._p, dt_s, self.substeps)
         # Mean body-frame acceleration over the step from the velocity change.
         du = (after[3] - before[3]) / dt_s

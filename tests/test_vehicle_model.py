@@ -55,6 +55,11 @@ def test_braking_stops_without_reversing() -> None:
         plant.step(0.0, -4500.0, 0.02)
     assert plant.state[3] == 0.0
     assert 0.0 < plant.state[0] < 5.0
+    # Held by the brakes: standing still, steering or not, it does not creep.
+    x_stop = plant.state.copy()
+    for _ in range(100):
+        plant.step(0.3, -500.0, 0.02)
+    np.testing.assert_array_equal(plant.state[:3], x_stop[:3])
 
 
 def test_params_are_validated() -> None:
