@@ -318,7 +318,10 @@ class FrenetPath:
 
     def gamma(self, s: np.ndarray | float) -> np.ndarray:
         """Tangent angle [rad], CCW from +X, continuous (unwrapped) in s."""
-        return self._gk(s)[0]
+        s_arr = np.asarray(s, dtype=np.float64)
+        out = np.empty(s_arr.size)
+        _gamma_many(self._meta, self._coef, s_arr.reshape(-1).copy(), out)
+        return out.reshape(s_arr.shape)
 
     def kappa(self, s: np.ndarray | float) -> np.ndarray:
         """Signed curvature d gamma / ds [1/m] (positive turning left)."""
@@ -378,6 +381,22 @@ class FrenetPath:
             d_out[need] = d2
         return s_out.reshape(x_arr.shape), d_out.reshape(x_arr.shape)
 
+    def project_along(self, x: np.ndarray, y: np.ndarray, x_ref: float, y_ref: float,
+                      s_ref: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Project many points near a known one: (s, y_lat, gamma(s)), arrays (n,).
+
+        Each point's Newton projection starts from s_ref plus its displacement from
+        (x_ref, y_ref) along the tangent at s_ref (a good hint hundreds of metres
+        out on highway curves, so the k-d tree fallback is rarely needed), and the
+        tangent angle of the result comes from the same compiled pass.
+        """
+        xf = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
+        yf = np.ascontiguousarray(y, dtype=np.float64).reshape(-1)
+        g0 = float(self.gamma(s_ref))
+        hints = s_ref + (xf - x_ref) * np.cos(g0) + (yf - y_ref) * np.sin(g0)
+        s_out, d_out = self.project(xf, yf, s_hint=hints)
+        return s_out, d_out, self.gamma(s_out)
+
     def project_pose(self, x: np.ndarray | float, y: np.ndarray | float,
                      heading: np.ndarray | float,
                      s_hint: np.ndarray | float | None = None,
@@ -387,6 +406,12 @@ class FrenetPath:
         err = np.asarray(heading, dtype=np.float64) - self.gamma(s)
         err = (err + np.pi) % (2 * np.pi) - np.pi
         return s, d, err
+
+
+@numba.njit(cache=True)
+def _gamma_many(meta: np.ndarray, coef: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
+    for i in range(s.shape[0]):
+        out[i] = path_gamma(meta, coef, s[i])[0]
 
 
 @numba.njit(cache=True)

@@ -265,8 +265,10 @@ class ObstacleBuilder:
         lanes_of_interest = {0, ego_lane_rel}
         if side in (SIDE_LEFT, SIDE_RIGHT):
             lanes_of_interest.add(side)
-        relevant = ((dist <= pol.detection_distance_m) & (ds >= -pol.rear_range_m)
-                    & np.isin(lane_rel, sorted(lanes_of_interest)))
+        in_lanes = lane_rel == 0
+        for lane in lanes_of_interest:
+            in_lanes |= lane_rel == lane
+        relevant = (dist <= pol.detection_distance_m) & (ds >= -pol.rear_range_m) & in_lanes
         if not pol.moving_obstacles:
             relevant &= neighbours.stalled
         order = np.flatnonzero(relevant)
@@ -298,19 +300,22 @@ class ObstacleBuilder:
         return side * 0.5 * (w_ref + w_target)
 
 
-def to_frenet(path: object, neighbours: Neighbours, s_hint: float) -> FrenetNeighbours:
-    """Project neighbours (box centres, velocities) onto the reference path."""
+def to_frenet(path: object, neighbours: Neighbours, ego_s: float, ego_x: float,
+              ego_y: float) -> FrenetNeighbours:
+    """Project neighbours (box centres, velocities) onto the reference path.
+
+    The ego's own projection (s at its CG) seeds every neighbour's, see
+    :meth:`controllers.frenet.FrenetPath.project_along`.
+    """
     if neighbours.count == 0:
         z = np.zeros(0)
         return FrenetNeighbours(z, z, z, z, z, z)
-    s, y = path.project(neighbours.x_m, neighbours.y_m, s_hint=s_hint)  # type: ignore[attr-defined]
-    s = np.asarray(s, dtype=np.float64)
-    y = np.asarray(y, dtype=np.float64)
-    gamma = np.asarray(path.gamma(s), dtype=np.float64)  # type: ignore[attr-defined]
+    s, y, gamma = path.project_along(  # type: ignore[attr-defined]
+        neighbours.x_m, neighbours.y_m, ego_x, ego_y, ego_s)
     rel = neighbours.heading_rad - gamma
     v_s = neighbours.speed_mps * np.cos(rel)
     v_y = neighbours.speed_mps * np.sin(rel)
-    return FrenetNeighbours(s, y, v_s, v_y, neighbours.length_m.copy(), neighbours.width_m.copy())
+    return FrenetNeighbours(s, y, v_s, v_y, neighbours.length_m, neighbours.width_m)
 
 
 def ellipses_in_world(path: object, obstacles: Obstacles) -> np.ndarray:

@@ -342,7 +342,7 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
         ellipses = np.zeros((0, 6))
         obs_kwargs: dict[str, Any] = {}
         if builder is not None:
-            fn = to_frenet(path, nb, s_hint)
+            fn = to_frenet(path, nb, s_hint, float(state[0]), float(state[1]))
             edge, _ = network.locate(route, min(max(s_hint, 0.0), route_len_m - 1e-3))
             decision = builder.build(s_hint, float(y_now), speed, target, nb, fn,
                                      lane_slots.get(edge, {}), lane_width)

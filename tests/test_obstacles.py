@@ -49,7 +49,7 @@ def decide(path: FrenetPath, rows, lanes=THREE_LANES, ref_lane=1, shoulder=False
            ego_s=100.0, ego_y=0.0, ego_v=25.0):
     nb = neighbours(rows)
     builder = ObstacleBuilder(ObstaclePolicy(), 4.8, 1.9, ref_lane, shoulder)
-    fn = to_frenet(path, nb, ego_s)
+    fn = to_frenet(path, nb, ego_s, ego_s, ego_y)
     return builder.build(ego_s, ego_y, ego_v, 25.0, nb, fn, lanes, W)
 
 
@@ -114,11 +114,13 @@ def test_missing_and_barred_lanes_are_not_used(path: FrenetPath) -> None:
 def test_committed_side_is_kept_mid_manoeuvre(path: FrenetPath) -> None:
     nb = neighbours([("stalled0", 170.0, 0.0, 0.0)])
     builder = ObstacleBuilder(ObstaclePolicy(), 4.8, 1.9, 1, False)
-    first = builder.build(140.0, 1.5, 25.0, 25.0, nb, to_frenet(path, nb, 140.0), THREE_LANES, W)
+    first = builder.build(140.0, 1.5, 25.0, 25.0, nb, to_frenet(path, nb, 140.0, 140.0, 1.5),
+                          THREE_LANES, W)
     assert first.side == SIDE_LEFT
     # A fast car now appears in the left lane; the ego is already 1.5 m across: stay left.
     nb2 = neighbours([("stalled0", 170.0, 0.0, 0.0), ("fast", 120.0, W, 35.0)])
-    again = builder.build(142.0, 1.6, 25.0, 25.0, nb2, to_frenet(path, nb2, 142.0), THREE_LANES, W)
+    again = builder.build(142.0, 1.6, 25.0, 25.0, nb2,
+                          to_frenet(path, nb2, 142.0, 142.0, 1.6), THREE_LANES, W)
     assert again.side == SIDE_LEFT and again.reason.startswith("committed")
 
 
@@ -172,7 +174,7 @@ def test_lateral_reference_is_the_pass_lane_until_the_car_is_passed(path: Frenet
     nb = neighbours([("stalled0", 300.0, 0.0, 0.0)])
 
     def at(s: float, y: float):
-        return builder.build(s, y, 25.0, 25.0, nb, to_frenet(path, nb, s), lanes, W)
+        return builder.build(s, y, 25.0, 25.0, nb, to_frenet(path, nb, s, s, y), lanes, W)
 
     assert at(200.0, 0.0).lateral_reference_m == pytest.approx(W)  # left: 3.5 m over
     alongside = at(301.0, 3.4)
@@ -185,5 +187,6 @@ def test_lateral_reference_is_the_pass_lane_until_the_car_is_passed(path: Frenet
     # Passing on a 3.0 m shoulder: the reference is between the two centres, 3.25 m right.
     right = ObstacleBuilder(ObstaclePolicy(), 4.8, 1.9, 1, True)
     busy = neighbours([("stalled0", 300.0, 0.0, 0.0), ("carL", 200.0, W, 25.0)])
-    d = right.build(200.0, 0.0, 25.0, 25.0, busy, to_frenet(path, busy, 200.0), lanes, W)
+    d = right.build(200.0, 0.0, 25.0, 25.0, busy, to_frenet(path, busy, 200.0, 200.0, 0.0),
+                    lanes, W)
     assert d.side == SIDE_RIGHT and d.lateral_reference_m == pytest.approx(-3.25)
