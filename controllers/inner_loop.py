@@ -42,7 +42,7 @@ import numba
 import numpy as np
 
 from controllers.frenet import path_gamma, path_to_global
-from controllers.vehicle_model import stvm_derivative
+from controllers.vehicle_model import stvm_rk4
 
 
 @numba.njit(cache=True)
@@ -126,18 +126,7 @@ def _rk4_adaptive(x: np.ndarray, delta: float, torque: float, vp: np.ndarray,
     nsub = int(math.ceil(dt * lam / 1.5))
     if nsub < 1:
         nsub = 1
-    h = dt / nsub
-    for _ in range(nsub):
-        k1 = stvm_derivative(x, delta, torque, vp)
-        k2 = stvm_derivative(x + 0.5 * h * k1, delta, torque, vp)
-        k3 = stvm_derivative(x + 0.5 * h * k2, delta, torque, vp)
-        k4 = stvm_derivative(x + h * k3, delta, torque, vp)
-        x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        if x[3] < 0.0:
-            x[3] = 0.0
-            x[4] = 0.0
-            x[5] = 0.0
-    return x
+    return stvm_rk4(x, delta, torque, vp, dt, nsub)
 
 
 @numba.njit(cache=True)
