@@ -27,7 +27,7 @@ import math
 import numpy as np
 from scipy.signal import savgol_filter
 
-from suite.metrics.tracking import column, control_period_s
+from suite.metrics.tracking import column, control_period_s, median_time_step_s
 from suite.run_record import RunRecord
 
 SG_WINDOW_S = 0.5
@@ -37,13 +37,8 @@ SG_MIN_WINDOW = 5
 
 def sample_period_s(record: RunRecord) -> float:
     """Median spacing of ``t_s`` [s] (the control period if t_s is unusable)."""
-    t = column(record, "t_s")
-    if t.size >= 2:
-        d = np.diff(t)
-        d = d[np.isfinite(d) & (d > 0)]
-        if d.size:
-            return float(np.median(d))
-    return control_period_s(record)
+    dt = median_time_step_s(record)
+    return dt if math.isfinite(dt) else control_period_s(record)
 
 
 def sg_window(n: int, dt: float) -> int:

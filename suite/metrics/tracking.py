@@ -38,11 +38,8 @@ def bool_column(record: RunRecord, name: str) -> np.ndarray:
     return np.nan_to_num(values, nan=0.0) != 0.0
 
 
-def control_period_s(record: RunRecord) -> float:
-    """The control period [s]: ``run.json`` ``step_s``, else the median step of ``t_s``."""
-    step = record.meta.get("step_s")
-    if isinstance(step, int | float) and math.isfinite(step) and step > 0:
-        return float(step)
+def median_time_step_s(record: RunRecord) -> float:
+    """Median positive spacing of ``t_s`` [s]; NaN if it cannot be measured."""
     t = column(record, "t_s")
     if t.size >= 2:
         d = np.diff(t)
@@ -50,6 +47,14 @@ def control_period_s(record: RunRecord) -> float:
         if d.size:
             return float(np.median(d))
     return float("nan")
+
+
+def control_period_s(record: RunRecord) -> float:
+    """The control period [s]: ``run.json`` ``step_s``, else the median step of ``t_s``."""
+    step = record.meta.get("step_s")
+    if isinstance(step, int | float) and math.isfinite(step) and step > 0:
+        return float(step)
+    return median_time_step_s(record)
 
 
 def step_durations_s(record: RunRecord) -> np.ndarray:
