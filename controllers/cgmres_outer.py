@@ -290,6 +290,24 @@ class CgmresOuter:
         self.guard_total = 0
         self.subupdate_times_s.clear()
 
+    def restart(self, x0: np.ndarray, target_speed_mps: float,
+                target_accel_mps2: float = 0.0) -> None:
+        """Re-initialise at the next update (growing horizon from zero at its state, so
+        E ~ 0) without forgetting the run's counters; the target-speed ramp continues
+        from ``target_speed_mps`` with acceleration ``target_accel_mps2`` (a launch
+        handed over mid-acceleration keeps its ramp: no step in the planned speed's
+        rate). Obstacles re-enter at full weight (exact in the closed-form start)."""
+        vt = float(target_speed_mps)
+        acc = float(target_accel_mps2)
+        self._initialised = False
+        self._x_prev = np.asarray(x0, dtype=np.float64).copy()
+        self._vt = vt if math.isfinite(vt) and vt > 0.0 else 0.0
+        self._ramp.reset(self._vt)
+        if math.isfinite(acc):
+            self._ramp.ramp_accel_mps2 = acc
+        self._obs = obstacle_table(self.params.n_obstacles)
+        self._fallback_until = -math.inf
+
     @property
     def ocp_target_speed_mps(self) -> float:
         """The rate-limited target speed the OCP currently uses."""

@@ -34,6 +34,8 @@ VehiclesFn = Callable[[float], Sequence[FrenetVehicle]]
 # (t_s, s_m, y_m) of the ego CG -> (pass_side, lateral_reference_m), as the runner decides.
 LateralFn = Callable[[float, float, float], tuple[int, float]]
 VehicleLike = FrenetVehicle | tuple[float, ...]
+# lateral_fn's pass side for "follow" (suite.obstacles.SIDE_FOLLOW): no free side.
+FOLLOW_SIDE = 2
 
 
 def _as_vehicle(v: VehicleLike) -> FrenetVehicle:
@@ -95,6 +97,8 @@ def simulate(controller: Controller, path_xy: np.ndarray,
     ``lateral_fn(t, s_cg, y_cg) -> (pass_side, lateral_reference_m)`` emulates the
     runner's lane context every step (it overrides ``pass_side``); without it the
     lateral reference is 0. The raw reference is traced as ``lateral_reference_m``.
+    pass_side ``FOLLOW_SIDE`` (2) emulates the runner's follow mode: no offset, the
+    ellipses in the ego lane ahead widened by 1.5 lane widths, Observation.pass_side 0.
     """
     vp = vehicle or VehicleParams()
     path = FrenetPath.cached(path_xy)
@@ -125,7 +129,14 @@ def simulate(controller: Controller, path_xy: np.ndarray,
         side, y_ref = pass_side, 0.0
         if lateral_fn is not None:
             side, y_ref = lateral_fn(t, s_cg, y_cg)
-        obstacles = build_obstacles(s_cg, y_cg, vehs, policy, vp, side)
+        follow = side == FOLLOW_SIDE
+        obstacles = build_obstacles(s_cg, y_cg, vehs, policy, vp, 0 if follow else side)
+        if follow and obstacles.count:
+            # The runner's follow mode (suite.obstacles): the blocking ellipse in the ego
+            # lane ahead is widened across the lane so that no way round exists.
+            blocking = (np.abs(obstacles.y_m) < 0.5 * lane_width_m) & (obstacles.s_m > s_cg)
+            obstacles.semi_b_m[blocking] += 1.5 * lane_width_m
+            side = 0
         vt = target_speed_fn(t, s_cg) if target_speed_fn is not None else target_speed_mps
         obs = Observation(t_s=t, state=st.copy(), target_speed_mps=vt, obstacles=obstacles,
                           pass_side=side if obstacles.count else 0,

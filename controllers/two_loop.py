@@ -67,6 +67,56 @@ tests). Cy moves continuously and C/GMRES carries its rate in F_t like yr's.
 
 A non-finite r_raw holds the previous one.
 
+Launch (low speed / standstill)
+-------------------------------
+The SPMM's input V multiplies every lateral term (df/dtheta ~ V), so at V = 0 heading
+and lateral motion are uncontrollable and F_U is singular. Stopped behind a stalled
+car with the target raised again (the runner found a free side), C/GMRES planned
+*negative* speeds (the barrier of the ellipse a few metres ahead pushes the plan
+back, and the OCP target is still ~0 at the start of its ramp), the car could not
+follow, E grew to 15-40 with a braking torque, and when it broke loose the torque
+saturated (6.3 m/s², 28 m/s³ in SUMO). Measured on the plant: even a fresh C/GMRES
+start at 0.5-3 m/s from 8 m behind the car (where the follow profile stops it) ends
+in fallbacks and contact; from 23 m behind it passes. So the outer plan is not used
+from standstill until the car is moving and clear of the obstacle's ellipse:
+
+* engage (``launch`` on): speed < ``launch_engage_speed_mps``, target above
+  ``launch_speed_mps``, and either the lane ahead is free of ellipses for
+  ``launch_handover_free_m`` or the lateral reference asks for a pull-out (|yr_raw - y|
+  > 0.5 m). Stopped in follow mode (lane blocked, no side free) it does not engage:
+  C/GMRES holds the car (E ~ 0 there, as before).
+* launch law: a :class:`TargetSpeedRamp` (same accel/decel/jerk limits as the OCP's)
+  towards min(target, ``launch_max_speed_mps``, sqrt(2 ``launch_guard_decel_mps2``
+  (d - ``launch_clearance_m``))), torque = m R a_ramp + ``launch_k_pv`` (V_ramp - V).
+  d is the free distance along the steering direction to the nearest obstacle's
+  box-sum rectangle (the CG positions where the two boxes touch, recovered from
+  the ellipse by inverting ``obstacle_geometry.ellipse_semi_axes``) grown by
+  ``launch_clearance_m``; without a pull-out also to the OCP's ellipse itself.
+  Steering: pure pursuit of the raw lateral reference (the lane centre, or the pass
+  lane's) at ``launch_lookahead_m``, heading offset at most ``launch_max_heading_rad``:
+  delta = (L + K_us V²) kappa + ``launch_k_heading`` (gamma + h - psi), scaled by
+  min(V / ``launch_steer_speed_mps``, 1) (no steering at standstill: the linear-tyre
+  STVM slides sideways when steered at u = 0). With no pull-out this holds the lane.
+  Target below ``launch_hold_target_mps``: the ramp brakes to 0 and the brakes hold
+  (-m R ``launch_hold_decel_mps2``).
+* hand-over: speed >= ``launch_speed_mps`` and the lane ahead at the car's offset
+  free of ellipses for ``launch_handover_free_m``: C/GMRES restarts at the measured
+  state (growing horizon from 0, E ~ 0; ``CgmresOuter.restart`` keeps the ramp's speed
+  *and* acceleration), the lateral-reference shaper restarts at the car's offset, the
+  preview integral is cleared, and the command blends from the launch law to the
+  two-loop one over ``launch_blend_s`` (C¹ smoothstep): no torque or steering step.
+* diagnostics: ``launch`` (0/1), ``launch_weight`` (1 in launch, easing to 0),
+  ``launch_ramp_speed_mps``; in launch mode ``residual`` is 0 (nothing solved) and
+  ``outer_updates`` 0. Above ``launch_engage_speed_mps`` nothing of this runs (the
+  cruising step is the paper's controller, unchanged).
+
+Figures (plant, follow profile to a stop 8 m behind a stalled car, side free at t = 20
+s, target 22 m/s; tests/test_two_loop_launch.py): straight / R = 400 m curve: long acc
+[-0.96, 1.82] / [-1.72, 1.85] m/s², SG jerk 3.2 / 2.7 m/s³, lat acc 0.5 / 1.2 m/s², no
+contact, no fallback, E <= 0.55 after the hand-over (at 2.6 / 1.8 m/s, 4.2 / 4.4 s after
+the side freed), 22 / 21.8 m/s at t = 40 s, within 0.01 m of the pass lane. Without
+the launch: long acc -10..7.3 m/s², jerk 48 m/s³, 249 fallback steps, contact.
+
 All parameters live in :class:`TwoLoopParams` (flat, with units), validated in
 ``__post_init__``; :func:`make_two_loop` builds a controller from flat catalog
 options and raises :class:`ConfigError` naming the bad key.
@@ -90,10 +140,11 @@ from controllers.protocol import (
     ConfigError,
     Observation,
     ObstaclePolicy,
+    Obstacles,
     ScenarioContext,
 )
 from controllers.registry import check_options
-from controllers.spmm_ocp import COSTS, OuterParams
+from controllers.spmm_ocp import COSTS, OuterParams, TargetSpeedRamp
 from controllers.vehicle_model import VehicleParams
 
 OuterFactory = Callable[[FrenetPath, OuterParams], OuterSolver]
@@ -123,6 +174,18 @@ class TwoLoopParams:
       [rad] (> 0) the rate limit is at most V times it; c_y_lateral_ref [1/(m² s)]
       (>= 0) Cy while a lateral reference is engaged, lateral_weight_time_s [s] (> 0)
       its blend time from/to c_y.
+    Launch (see "Launch" in the module docstring): launch (on/off); launch_speed_mps
+      [m/s] hand-over speed (> launch_engage_speed_mps [m/s], the standstill threshold
+      below which it may engage); launch_max_speed_mps [m/s] (>= launch_speed_mps)
+      speed cap until the hand-over; launch_blend_s [s] (> 0) hand-over blend;
+      launch_k_pv [N m s/m] speed-error gain; launch_k_heading [rad/rad],
+      launch_lookahead_m [m], launch_max_heading_rad [rad] pure pursuit;
+      launch_steer_speed_mps [m/s] steering fades in up to it; launch_clearance_m [m]
+      (>= 0) grown box-sum rectangle; launch_guard_decel_mps2 [m/s²] speed cap from
+      the free distance; launch_handover_free_m [m] (>= 0) free lane ahead needed to
+      engage without a pull-out and to hand over; launch_hold_target_mps [m/s]
+      (< launch_speed_mps) target treated as "stop"; launch_hold_decel_mps2 [m/s²]
+      holding brake (as -m R times it).
     Obstacle policy (``obstacle_policy``): detection_distance_m (100 m: at 80 m and
       30 m/s the horizon's end, 72 m ahead, was already inside a stalled car's ellipse
       (A ≈ 10.5 m) when it entered the problem: E jumped to 5-20 and the car braked),
@@ -183,6 +246,21 @@ class TwoLoopParams:
     offset_m: float = 0.3
     max_obstacles: int = 3
     moving_obstacles: bool = True
+    launch: bool = True
+    launch_speed_mps: float = 1.5
+    launch_engage_speed_mps: float = 0.5
+    launch_blend_s: float = 0.6
+    launch_k_pv: float = 1500.0
+    launch_max_speed_mps: float = 3.0
+    launch_k_heading: float = 1.0
+    launch_lookahead_m: float = 6.0
+    launch_max_heading_rad: float = 0.35
+    launch_steer_speed_mps: float = 1.0
+    launch_clearance_m: float = 0.3
+    launch_guard_decel_mps2: float = 1.0
+    launch_handover_free_m: float = 20.0
+    launch_hold_target_mps: float = 0.3
+    launch_hold_decel_mps2: float = 1.0
 
     def __post_init__(self) -> None:
         def bad(key: str, expected: str) -> ConfigError:
@@ -205,7 +283,10 @@ class TwoLoopParams:
                     "horizon_growth_rate", "target_accel_mps2", "target_decel_mps2",
                     "target_jerk_mps3", "z_guard",
                     "fallback_residual", "fallback_decel_mps2", "k_ps", "obstacle_fade_s",
-                    "lateral_ref_rate_mps", "lateral_weight_time_s", "lateral_ref_heading_rad")
+                    "lateral_ref_rate_mps", "lateral_weight_time_s", "lateral_ref_heading_rad",
+                    "launch_speed_mps", "launch_engage_speed_mps", "launch_blend_s",
+                    "launch_steer_speed_mps", "launch_max_speed_mps", "launch_lookahead_m",
+                    "launch_max_heading_rad", "launch_guard_decel_mps2")
         for key in positive:
             if not getattr(self, key) > 0:
                 raise bad(key, "a number > 0")
@@ -213,7 +294,9 @@ class TwoLoopParams:
                   "c_e_terminal", "fallback_hold_s", "lookahead_s", "k_pv", "k_pvc", "k_psc",
                   "k_isc", "integral_limit_ms", "detection_distance_m", "rear_range_m",
                   "margin_long_m", "margin_lat_m", "offset_m", "lateral_ref_filter_s",
-                  "c_y_lateral_ref")
+                  "c_y_lateral_ref", "launch_k_pv", "launch_k_heading",
+                  "launch_hold_target_mps", "launch_hold_decel_mps2", "launch_clearance_m",
+                  "launch_handover_free_m")
         for key in nonneg:
             if not getattr(self, key) >= 0:
                 raise bad(key, "a number >= 0")
@@ -230,6 +313,15 @@ class TwoLoopParams:
             raise bad("lookahead_s", "a number <= horizon_s")
         if self.n_preview * self.preview_dt_s > self.horizon_s:
             raise bad("n_preview", "n_preview * preview_dt_s <= horizon_s")
+        if self.launch_engage_speed_mps >= self.launch_speed_mps:
+            raise bad("launch_engage_speed_mps", f"a number < launch_speed_mps = "
+                      f"{self.launch_speed_mps}")
+        if self.launch_max_speed_mps < self.launch_speed_mps:
+            raise bad("launch_max_speed_mps", f"a number >= launch_speed_mps = "
+                      f"{self.launch_speed_mps}")
+        if self.launch_hold_target_mps >= self.launch_speed_mps:
+            raise bad("launch_hold_target_mps", f"a number < launch_speed_mps = "
+                      f"{self.launch_speed_mps}")
         try:
             self.outer_params()
         except ValueError as exc:  # a cost-specific weight is zero
@@ -314,6 +406,16 @@ class TwoLoopController:
         # engaged flag] (NaN: not started).
         self._yref = np.full(6, np.nan)
         self._t_first = 0.0
+        self._init_launch_state()
+
+    def _init_launch_state(self) -> None:
+        p = self.params
+        self._launch_ramp = TargetSpeedRamp(p.target_accel_mps2, p.target_decel_mps2,
+                                            p.target_jerk_mps3)
+        self._launch_active = False
+        self._launch_t_handover = -math.inf
+        self._last_torque = 0.0
+        self.launch_count = 0
 
     # ----------------------------------------------------------------- protocol
     def reset(self, context: ScenarioContext) -> None:
@@ -342,6 +444,7 @@ class TwoLoopController:
         self._t_prev = None
         self.plan = None
         self._yref[:] = np.nan
+        self._init_launch_state()
         # Load the inner loop's compiled kernels now rather than in the first step.
         meta, coef, knots = self.path.tables()
         n = self.outer_params.n_stages
@@ -380,34 +483,65 @@ class TwoLoopController:
         dt = self._dt if self._t_prev is None else max(observation.t_s - self._t_prev, 1e-6)
         if self._t_prev is None:
             self._t_first = float(observation.t_s)
+        speed = math.hypot(float(st[3]), float(st[4]))
         y_ref = self._lateral_reference(float(observation.lateral_reference_m),
                                         None if self._t_prev is None else dt, float(x0[1]),
-                                        math.hypot(float(st[3]), float(st[4])),
-                                        float(observation.t_s) - self._t_first)
+                                        speed, float(observation.t_s) - self._t_first)
         blend = 0.5 * (1.0 - math.cos(math.pi * float(self._yref[4])))  # C¹ in time
         c_y = p.c_y + (p.c_y_lateral_ref - p.c_y) * blend
-        plan = self.outer.update(observation.t_s, x0, observation.obstacles,
-                                 float(observation.target_speed_mps), self._dt,
-                                 lateral_reference_m=y_ref, lateral_weight=c_y)
-        self.plan = plan
-        t_inner0 = time.perf_counter()
+        t_s = float(observation.t_s)
+        vt_obs = float(observation.target_speed_mps)
+        if p.launch and (self._launch_active or speed < p.launch_engage_speed_mps):
+            # (at speed nothing to do: keeps the cruising step as it was)
+            free_m = self._free_distance(float(x0[0]), float(x0[1]), observation.obstacles)
+            self._launch_transition(t_s, x0, speed, vt_obs, free_m,
+                                    float(observation.lateral_reference_m))
+        # Launch weight: 1 in launch mode, easing to 0 over launch_blend_s after the
+        # hand-over (C¹ smoothstep), 0 otherwise.
+        lw = 0.0
+        if self._launch_active:
+            lw = 1.0
+        elif t_s - self._launch_t_handover < p.launch_blend_s:
+            phi = min(max((t_s - self._launch_t_handover) / p.launch_blend_s, 0.0), 1.0)
+            lw = 1.0 - phi * phi * (3.0 - 2.0 * phi)
+        steer_l = torque_l = 0.0
+        if lw > 0.0:
+            steer_l, torque_l = self._launch_command(
+                st, x0, speed, vt_obs, float(self._yref[0]), observation.obstacles,
+                int(observation.pass_side), dt)
         meta, coef, knots = self.path.tables()
-        tau = np.ascontiguousarray(plan.stage_times_s, dtype=np.float64)
+        if self._launch_active:
+            plan = self._launch_plan(x0)
+            t_inner0 = time.perf_counter()
+            d_ol = t_ol = pe_t = pe_n = d_c = t_c = 0.0
+            steer, torque = steer_l, torque_l
+            self._preview_xy[:] = st[:2]
+        else:
+            plan = self.outer.update(observation.t_s, x0, observation.obstacles, vt_obs,
+                                     self._dt, lateral_reference_m=y_ref, lateral_weight=c_y)
+            t_inner0 = time.perf_counter()
+            tau = np.ascontiguousarray(plan.stage_times_s, dtype=np.float64)
+            states = np.ascontiguousarray(plan.states, dtype=np.float64)
+            speeds = np.ascontiguousarray(plan.speeds_mps, dtype=np.float64)
+            out = self._inner_out
+            inner_step(st, tau, states, speeds, self._gains, self._vp, self._limits,
+                       p.n_preview, p.preview_dt_s, meta, coef, knots, self._preview_xy, out)
+            d_ol, t_ol, pe_t, pe_n = float(out[0]), float(out[1]), float(out[2]), float(out[3])
+            if p.preview and math.isfinite(pe_n) and math.isfinite(pe_t):
+                self._integral = min(max(self._integral + pe_n * dt, -p.integral_limit_ms),
+                                     p.integral_limit_ms)
+                d_c = p.k_psc * pe_n + p.k_isc * self._integral
+                t_c = p.k_pvc * pe_t
+            else:
+                d_c, t_c = 0.0, 0.0
+            steer = d_ol + d_c
+            torque = t_ol + t_c
+            if lw > 0.0:  # hand-over blend from the launch command to the two-loop one
+                steer = lw * steer_l + (1.0 - lw) * steer
+                torque = lw * torque_l + (1.0 - lw) * torque
+        self.plan = plan
         states = np.ascontiguousarray(plan.states, dtype=np.float64)
         speeds = np.ascontiguousarray(plan.speeds_mps, dtype=np.float64)
-        out = self._inner_out
-        inner_step(st, tau, states, speeds, self._gains, self._vp, self._limits, p.n_preview,
-                   p.preview_dt_s, meta, coef, knots, self._preview_xy, out)
-        d_ol, t_ol, pe_t, pe_n = float(out[0]), float(out[1]), float(out[2]), float(out[3])
-        if p.preview and math.isfinite(pe_n) and math.isfinite(pe_t):
-            self._integral = min(max(self._integral + pe_n * dt, -p.integral_limit_ms),
-                                 p.integral_limit_ms)
-            d_c = p.k_psc * pe_n + p.k_isc * self._integral
-            t_c = p.k_pvc * pe_t
-        else:
-            d_c, t_c = 0.0, 0.0
-        steer = d_ol + d_c
-        torque = t_ol + t_c
         fallback = bool(plan.fallback)
         if not (math.isfinite(steer) and math.isfinite(torque)):
             # Never hand out NaN: hold the lane heading and brake.
@@ -417,6 +551,7 @@ class TwoLoopController:
             torque = -self._vp[0] * self._vp[6] * p.fallback_decel_mps2
             d_c = t_c = 0.0
             d_ol, t_ol = steer, torque
+        self._last_torque = float(torque)
         t_end = time.perf_counter()
         self._t_prev = observation.t_s
         plan_xy = np.empty((states.shape[0], 2))
@@ -434,13 +569,160 @@ class TwoLoopController:
             "planned_speed_mps": float(speeds[0]) if speeds.size else 0.0,
             "preview_err_t_m": pe_t,
             "preview_err_n_m": pe_n,
-            "outer_updates": float(p.sub_updates if p.outer == "cgmres" else 1),
+            "outer_updates": (0.0 if self._launch_active else
+                              float(p.sub_updates if p.outer == "cgmres" else 1)),
             "lateral_ref_m": y_ref,
             "lateral_ref_rate_mps": float(self._yref[3]),
             "lateral_weight": c_y,
+            "launch": 1.0 if self._launch_active else 0.0,
+            "launch_weight": lw,
+            "launch_ramp_speed_mps": self._launch_ramp.speed_mps,
         }
         return Command(steer_rad=float(steer), torque_nm=float(torque), diagnostics=diag,
                        arrays={"plan_xy_m": plan_xy, "preview_xy_m": self._preview_xy.copy()})
+
+    # ------------------------------------------------------------------- launch
+    @staticmethod
+    def _free_distance(s: float, y: float, obstacles: Obstacles) -> float:
+        """Distance [m] along the lane, at the lateral offset y, from s to the nearest
+        obstacle ellipse (as the OCP sees it) ahead; 0 inside one, inf if none."""
+        d = math.inf
+        for j in range(obstacles.count):
+            sj, yj = float(obstacles.s_m[j]), float(obstacles.y_m[j])
+            a, b = float(obstacles.semi_a_m[j]), float(obstacles.semi_b_m[j])
+            q = (y - yj) / b if b > 0.0 else math.inf
+            if not (abs(q) < 1.0 and math.isfinite(sj) and math.isfinite(a)):
+                continue
+            half = a * math.sqrt(1.0 - q * q)
+            if s > sj + half:
+                continue  # behind us
+            d = min(d, max(sj - half - s, 0.0))
+        return d
+
+    def _box_free_distance(self, s: float, y: float, heading: float, obstacles: Obstacles,
+                           pass_side: int) -> float:
+        """Distance [m] along the ray from (s, y) at ``heading`` (Frenet, relative to the
+        lane) to the nearest box-sum rectangle (the set of CG positions where the two
+        boxes touch when aligned with the lane, recovered from the ellipse by inverting
+        ``controllers.obstacle_geometry.ellipse_semi_axes``) grown by
+        ``launch_clearance_m``; 0 inside one, inf if the ray misses them all."""
+        pol = self.obstacle_policy
+        clr = self.params.launch_clearance_m
+        side = float(np.sign(pass_side)) if abs(pass_side) == 1 else 0.0
+        ch, sh = math.cos(heading), math.sin(heading)
+        best = math.inf
+        for j in range(obstacles.count):
+            a_e = float(obstacles.semi_a_m[j]) - pol.margin_long_m
+            b0 = float(obstacles.semi_b_m[j]) - pol.offset_m
+            b = b0 - max(pol.margin_lat_m, 0.05)
+            if not (a_e > 0.0 and b0 > 0.0 and b > 0.0):
+                continue
+            a = a_e * math.sqrt(max(1.0 - (b / b0) ** 2, 0.0))
+            sc = float(obstacles.s_m[j])
+            yc = float(obstacles.y_m[j]) + side * pol.offset_m * (1.0 if b0 > 0 else 0.0)
+            lo_s, hi_s = sc - a - clr - s, sc + a + clr - s
+            lo_y, hi_y = yc - b - clr - y, yc + b + clr - y
+            t0, t1 = 0.0, math.inf
+            ok = True
+            for lo, hi, dirc in ((lo_s, hi_s, ch), (lo_y, hi_y, sh)):
+                if abs(dirc) < 1e-12:
+                    if lo > 0.0 or hi < 0.0:
+                        ok = False
+                    continue
+                ta, tb = lo / dirc, hi / dirc
+                if ta > tb:
+                    ta, tb = tb, ta
+                t0, t1 = max(t0, ta), min(t1, tb)
+            if not (ok and t0 <= t1):
+                continue
+            if t0 <= 0.0 and abs(y - yc) > b and sh * (y - yc) > 0.0:
+                continue  # within the clearance band beside it and moving away
+            best = min(best, t0)
+        return best
+
+    def _launch_transition(self, t_s: float, x0: np.ndarray, speed: float, target: float,
+                           free_m: float, y_target: float) -> None:
+        """Enter launch mode or hand over to the two-loop controller (module docstring)."""
+        p = self.params
+        vp = self._vp
+        if not self._launch_active:
+            pull_out = math.isfinite(y_target) and abs(y_target - float(x0[1])) > 0.5
+            if (speed < p.launch_engage_speed_mps and target > p.launch_speed_mps
+                    and (free_m >= p.launch_handover_free_m or pull_out)):
+                self._launch_active = True
+                self._launch_t_handover = -math.inf
+                self._launch_ramp.reset(speed)
+                if speed > 0.05:  # moving: continue the commanded acceleration
+                    a = self._last_torque / (vp[0] * vp[6])
+                    self._launch_ramp.ramp_accel_mps2 = min(max(a, -p.target_decel_mps2),
+                                                            p.target_accel_mps2)
+            return
+        if speed >= p.launch_speed_mps and free_m >= p.launch_handover_free_m:
+            self._launch_active = False
+            self._launch_t_handover = t_s
+            self.launch_count += 1
+            self._integral = 0.0
+            # The lateral reference restarts at the car's offset (the pull-out may
+            # have taken it part of the way), at rest; it then moves on as usual.
+            ys = self._yref
+            ys[1] = ys[2] = float(x0[1])
+            ys[3] = 0.0
+            assert self.outer is not None
+            restart = getattr(self.outer, "restart", None)
+            if restart is not None:
+                restart(x0, self._launch_ramp.speed_mps, self._launch_ramp.ramp_accel_mps2)
+            else:
+                self.outer.reset(x0, self._launch_ramp.speed_mps)
+
+    def _launch_command(self, st: np.ndarray, x0: np.ndarray, speed: float, target: float,
+                        y_target: float, obstacles: Obstacles, pass_side: int,
+                        dt: float) -> tuple[float, float]:
+        """Launch law: jerk-limited ramp, speed capped by the free distance ahead,
+        pure-pursuit heading toward the lateral target, brake hold at standstill."""
+        p = self.params
+        vp = self._vp
+        assert self.path is not None
+        yt = y_target if math.isfinite(y_target) else float(x0[1])
+        h = math.atan2(yt - float(x0[1]), p.launch_lookahead_m)
+        h = min(max(h, -p.launch_max_heading_rad), p.launch_max_heading_rad)
+        free_m = self._box_free_distance(float(x0[0]), float(x0[1]), h, obstacles, pass_side)
+        if abs(yt - float(x0[1])) <= 0.25:  # not pulling out: the OCP's ellipses too
+            free_m = min(free_m, self._free_distance(float(x0[0]), float(x0[1]), obstacles))
+        set_point = target if math.isfinite(target) else 0.0
+        set_point = min(set_point, p.launch_max_speed_mps if self._launch_active else math.inf)
+        if math.isfinite(free_m):
+            set_point = min(set_point, math.sqrt(2.0 * p.launch_guard_decel_mps2
+                                                 * max(free_m - p.launch_clearance_m, 0.0)))
+        if set_point <= p.launch_hold_target_mps:
+            set_point = 0.0
+        vr = self._launch_ramp.update(set_point, dt)
+        ar = self._launch_ramp.ramp_accel_mps2
+        m_r = vp[0] * vp[6]
+        torque = m_r * ar + p.launch_k_pv * (vr - speed)
+        if set_point == 0.0 and vr <= 0.0 and speed < p.launch_engage_speed_mps:
+            torque = min(torque, -m_r * p.launch_hold_decel_mps2)  # hold the brakes
+        meta, coef, _ = self.path.tables()
+        g, kappa, _ = path_gamma(meta, coef, float(x0[0]))
+        wb = vp[2] + vp[3]
+        e_psi = (g + h - float(st[2]) + math.pi) % (2.0 * math.pi) - math.pi
+        steer = (wb + float(self._gains[7]) * speed * speed) * kappa + p.launch_k_heading * e_psi
+        steer *= min(speed / p.launch_steer_speed_mps, 1.0)
+        return steer, torque
+
+    def _launch_plan(self, x0: np.ndarray) -> OuterPlan:
+        """What the launch law does, as a plan for the logs: the ramp along the lane."""
+        assert self.path is not None
+        p = self.params
+        n = p.n_stages
+        tau = np.linspace(0.0, p.horizon_s, n + 1)
+        v = np.maximum(self._launch_ramp.speed_mps
+                       + self._launch_ramp.ramp_accel_mps2 * tau, 0.0)
+        s = float(x0[0]) + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1])
+                                                              * np.diff(tau))])
+        states = np.column_stack([s, np.full(n + 1, float(x0[1])), self.path.gamma(s)])
+        return OuterPlan(stage_times_s=tau, states=states, speeds_mps=v[:-1].copy(),
+                         headings_rad=states[:-1, 2].copy(), residual=0.0, fallback=False,
+                         guard_fired=0, solve_s=0.0)
 
     def _lateral_reference(self, raw: float, dt: float | None, y_now: float,
                            speed: float, since_start_s: float = math.inf) -> float:
