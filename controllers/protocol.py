@@ -166,7 +166,9 @@ class ObstaclePolicy:
     its speed (constant-velocity prediction); otherwise only stalled vehicles.
     """
 
-    detection_distance_m: float = 80.0
+    # 100 m: at 30 m/s the obstacle must enter before the end of a 2.4 s (72 m)
+    # horizon reaches its ellipse (A ~ 10.5 m), else E jumps when it appears.
+    detection_distance_m: float = 100.0
     rear_range_m: float = 10.0
     margin_long_m: float = 2.0
     margin_lat_m: float = 0.4

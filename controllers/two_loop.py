@@ -151,6 +151,11 @@ OuterFactory = Callable[[FrenetPath, OuterParams], OuterSolver]
 OUTERS = ("cgmres", "ipopt")
 
 
+# One source of truth for the defaults: the outer loop's and the obstacle policy's
+# own dataclasses (the flat fields below exist so that catalogs can set any of them).
+_OUTER_DEFAULTS = OuterParams()
+_POLICY_DEFAULTS = ObstaclePolicy()
+
 @dataclass(frozen=True)
 class TwoLoopParams:
     """Every parameter of the two-loop controller, flat, with units.
@@ -196,33 +201,33 @@ class TwoLoopParams:
 
     outer: str = "cgmres"
     cost: str = "J3"
-    horizon_s: float = 2.4
-    n_stages: int = 20
-    chebyshev: bool = False
-    k_max: int = 12
-    zeta_s: float = 50.0
-    fd_step: float = 1e-6
-    sub_updates: int = 4
-    c_z: float = 30.0
-    zeta: float = 0.2
-    c_y: float = 1.0
-    c_ydot: float = 1.0
-    c_sdot: float = 3.0
-    c_thetadot: float = 60.0
-    c_theta: float = 20.0
-    c_v: float = 1.0
-    c_y_terminal: float = 0.0
-    c_e_terminal: float = 2.0
-    horizon_growth_rate: float = 2.0
-    target_accel_mps2: float = 1.5
-    target_decel_mps2: float = 3.0
-    target_jerk_mps3: float = 2.0
-    z_guard: float = 0.05
-    obstacle_fade_s: float = 0.5
-    row_scaling: bool = True
-    fallback_residual: float = 50.0
-    fallback_decel_mps2: float = 3.0
-    fallback_hold_s: float = 1.0
+    horizon_s: float = _OUTER_DEFAULTS.horizon_s
+    n_stages: int = _OUTER_DEFAULTS.n_stages
+    chebyshev: bool = _OUTER_DEFAULTS.chebyshev
+    k_max: int = _OUTER_DEFAULTS.k_max
+    zeta_s: float = _OUTER_DEFAULTS.zeta_s
+    fd_step: float = _OUTER_DEFAULTS.fd_step
+    sub_updates: int = _OUTER_DEFAULTS.sub_updates
+    c_z: float = _OUTER_DEFAULTS.c_z
+    zeta: float = _OUTER_DEFAULTS.zeta
+    c_y: float = _OUTER_DEFAULTS.c_y
+    c_ydot: float = _OUTER_DEFAULTS.c_ydot
+    c_sdot: float = _OUTER_DEFAULTS.c_sdot
+    c_thetadot: float = _OUTER_DEFAULTS.c_thetadot
+    c_theta: float = _OUTER_DEFAULTS.c_theta
+    c_v: float = _OUTER_DEFAULTS.c_v
+    c_y_terminal: float = _OUTER_DEFAULTS.c_y_terminal
+    c_e_terminal: float = _OUTER_DEFAULTS.c_e_terminal
+    horizon_growth_rate: float = _OUTER_DEFAULTS.horizon_growth_rate
+    target_accel_mps2: float = _OUTER_DEFAULTS.target_accel_mps2
+    target_decel_mps2: float = _OUTER_DEFAULTS.target_decel_mps2
+    target_jerk_mps3: float = _OUTER_DEFAULTS.target_jerk_mps3
+    z_guard: float = _OUTER_DEFAULTS.z_guard
+    obstacle_fade_s: float = _OUTER_DEFAULTS.obstacle_fade_s
+    row_scaling: bool = _OUTER_DEFAULTS.row_scaling
+    fallback_residual: float = _OUTER_DEFAULTS.fallback_residual
+    fallback_decel_mps2: float = _OUTER_DEFAULTS.fallback_decel_mps2
+    fallback_hold_s: float = _OUTER_DEFAULTS.fallback_hold_s
     preview: bool = True
     n_preview: int = 10
     preview_dt_s: float = 0.05
@@ -239,13 +244,13 @@ class TwoLoopParams:
     lateral_ref_heading_rad: float = 0.1
     c_y_lateral_ref: float = 20.0
     lateral_weight_time_s: float = 1.0
-    detection_distance_m: float = 100.0
-    rear_range_m: float = 10.0
-    margin_long_m: float = 2.0
-    margin_lat_m: float = 0.4
-    offset_m: float = 0.3
-    max_obstacles: int = 3
-    moving_obstacles: bool = True
+    detection_distance_m: float = _POLICY_DEFAULTS.detection_distance_m
+    rear_range_m: float = _POLICY_DEFAULTS.rear_range_m
+    margin_long_m: float = _POLICY_DEFAULTS.margin_long_m
+    margin_lat_m: float = _POLICY_DEFAULTS.margin_lat_m
+    offset_m: float = _POLICY_DEFAULTS.offset_m
+    max_obstacles: int = _POLICY_DEFAULTS.max_obstacles
+    moving_obstacles: bool = _POLICY_DEFAULTS.moving_obstacles
     launch: bool = True
     launch_speed_mps: float = 1.5
     launch_engage_speed_mps: float = 0.5
