@@ -181,7 +181,7 @@ class OuterParams:
     k_max: int = 12
     zeta_s: float = 50.0
     fd_step: float = 1e-6
-    sub_updates: int = 4
+    sub_updates: int = 3
     horizon_growth_rate: float = 2.0
     target_accel_mps2: float = 1.5
     target_decel_mps2: float = 3.0
