@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import io
+import json
 import multiprocessing as mp
 import multiprocessing.connection
 import tarfile
@@ -70,8 +71,6 @@ def _write_failure(job: RunJob, status: str, message: str) -> dict[str, Any]:
     meta: dict[str, Any] = {}
     if meta_path.is_file():
         try:
-            import json
-
             meta = json.loads(meta_path.read_text())
         except ValueError:
             meta = {}
@@ -85,8 +84,6 @@ def _write_failure(job: RunJob, status: str, message: str) -> dict[str, Any]:
 
 
 def _read_result(job: RunJob) -> dict[str, Any]:
-    import json
-
     return dict(json.loads((job.out_dir / job.scenario_name / rr.RUN_JSON).read_text()))
 
 

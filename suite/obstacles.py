@@ -114,7 +114,6 @@ class ObstacleDecision:
     reason: str
     target_speed_mps: float
     ids: list[str] = field(default_factory=list)
-    ellipses_world: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     lateral_reference_m: float = 0.0
 
 

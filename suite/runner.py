@@ -323,7 +323,9 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
     state = state0.copy()
     prev_psi = state[2]
     prev_speed = float(state[3])
-    s_hint = float(path.project(state[0], state[1])[0])
+    # The pose projected at the end of one step is the next step's input: project once.
+    s_now, y_now, _ = path.project_pose(state[0], state[1], state[2])
+    s_hint = float(s_now)
     n_steps = int(round(scenario.duration_s / dt))
     first_collision_t: float | None = None
     end_s = path.length_m - _END_OF_ROUTE_MARGIN_M
@@ -333,8 +335,6 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
         if timeout is not None and time.perf_counter() - wall0 > timeout:
             raise ScenarioTimeout(f"wall-clock budget of {timeout} s exceeded at step {step}")
         t_s = step * dt
-        s_now, y_now, _ = path.project_pose(state[0], state[1], state[2], s_hint=s_hint)
-        s_hint = float(s_now)
         speed = math.hypot(state[3], state[4])
         tc0 = time.perf_counter()
         side, reason, n_obs, lat_ref = SIDE_NONE, "", 0, 0.0
@@ -364,12 +364,13 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
             world.move_ego(fx, fy, float(state[2]))
             hits = world.step()
             long_acc, lat_acc = plant.long_acc_mps2, plant.lat_acc_mps2
+            ego_sumo = world.ego_state() if world.ego_in_sim() else None
         else:
             steer, torque = math.nan, math.nan
             hits = world.step()
             if not world.ego_in_sim():
                 break
-            es = world.ego_state()
+            es = ego_sumo = world.ego_state()
             d = vehicle.cg_to_front_bumper_m
             psi = es.heading_rad
             r = math.remainder(psi - prev_psi, 2 * math.pi) / dt
@@ -383,7 +384,7 @@ def _simulate(scenario: Any, run_dir: Path, vehicle: VehicleParams, meta: dict[s
         t_end = world.time_s - t_origin
         gap, gap_id, overlap = _gap_and_collision(_ego_box(state, vehicle), nb)
         s_new, y_new, e_new = path.project_pose(state[0], state[1], state[2], s_hint=s_hint)
-        ego_sumo = world.ego_state() if world.ego_in_sim() else None
+        y_now, s_hint = y_new, float(s_new)
         lane_idx = ego_sumo.lane_index if ego_sumo is not None else -1
         diag = command.diagnostics
         rec.rows.append({

@@ -301,11 +301,6 @@ class SumoWorld:
         self._libsumo.vehicle.moveToXY(EGO_ID, "", -1, float(front_x_m), float(front_y_m),
                                        math_rad_to_nav_deg(heading_rad), keepRoute=2)
 
-    def set_ego_speed(self, speed_mps: float) -> None:
-        # Followers read the ego's speed; with moveToXY SUMO derives it from the
-        # displacement, which is what we want, so nothing else is forced here.
-        del speed_mps
-
     def step(self) -> list[dict[str, Any]]:
         """Advance SUMO by one step; return the collisions involving the ego this step."""
         ls = self._libsumo
@@ -398,9 +393,6 @@ class SumoWorld:
             edge = self.route[min(max(idx, 0) + (1 if edge.startswith(":") else 0),
                                   len(self.route) - 1)]
         return [li for li in self.network.lane_info(self.route) if li.edge_id == edge]
-
-    def all_vehicle_ids(self) -> tuple[str, ...]:
-        return tuple(self._libsumo.vehicle.getIDList())
 
     def close(self) -> None:
         if self._started:
