@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from controllers.closed_loop_sim import pass_reference, simulate
-from controllers.obstacle_geometry import FrenetVehicle
+from controllers.sim.closed_loop import pass_reference, simulate
+from controllers.behaviour.ellipses import FrenetVehicle
 from controllers.protocol import Command, Observation, ScenarioContext
-from controllers.two_loop import TwoLoopController, TwoLoopParams
+from controllers.two_loop.controller import TwoLoopController, TwoLoopParams
 
 
 class _TimedController:

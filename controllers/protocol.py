@@ -16,7 +16,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from controllers.vehicle_model import VehicleParams
+from controllers.plant.vehicle_model import VehicleParams
 
 
 class ConfigError(ValueError):

@@ -23,11 +23,11 @@ import numpy as np
 import pandas as pd
 
 from reports.tables import STATUSES, RunEval, summary_frame
-from suite.geometry import box_corners
-from suite.metrics.comfort import comfort_series
-from suite.metrics.criteria import Criteria, parse_failure
-from suite.metrics.evaluate import REQUIRED_METRICS
-from suite.metrics.safety import (
+from reports.metrics.geometry import box_corners
+from reports.metrics.comfort import comfort_series
+from reports.metrics.criteria import Criteria, parse_failure
+from reports.metrics.evaluate import REQUIRED_METRICS
+from reports.metrics.safety import (
     collision_steps,
     ego_boxes,
     ellipse_margin_series,
@@ -36,8 +36,8 @@ from suite.metrics.safety import (
     shoulder_allowed,
     ttc_series,
 )
-from suite.metrics.timing import loop_times_s
-from suite.metrics.tracking import column
+from reports.metrics.timing import loop_times_s
+from reports.metrics.tracking import column
 
 MAX_POINTS = 400
 STATUS_COLOURS = {"pass": "#15803d", "fail": "#dc2626", "error": "#7c3aed",

@@ -18,9 +18,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from suite.metrics.evaluate import REQUIRED_METRICS, EvaluationResult, evaluate_run
-from suite.metrics.timing import loop_times_s
-from suite.run_record import TRACEBACK, RunRecord, iter_run_dirs, load_run
+from reports.metrics.evaluate import REQUIRED_METRICS, EvaluationResult, evaluate_run
+from reports.metrics.timing import loop_times_s
+from reports.run_record import TRACEBACK, RunRecord, iter_run_dirs, load_run
 
 STATUSES = ("pass", "fail", "error", "timeout")
 LEAD_COLUMNS = ("scenario", "controller", "status", "collision", "min_gap_m", "progress_m",

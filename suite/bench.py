@@ -79,15 +79,15 @@ def _ipopt_vs_cgmres() -> dict[str, Any]:
 
     if importlib.util.find_spec("casadi") is None:
         return {"skipped": "casadi not installed (pip install 'hwyeval[baselines]')"}
-    from controllers.baselines.ipopt_outer import compare_with_cgmres
+    from controllers.two_loop.outer.ipopt import compare_with_cgmres
 
     return dict(compare_with_cgmres())
 
 
 def _runner_and_logging(jobs: int = 1) -> dict[str, Any]:
     from suite.catalog import load_catalog
-    from suite.executors import LocalExecutor, RunJob
-    from suite.runner import RunOptions
+    from suite.exec.executors import LocalExecutor, RunJob
+    from suite.run.runner import RunOptions
 
     with tempfile.TemporaryDirectory(prefix="hwyeval-bench-") as tmp:
         tmp_path = Path(tmp)

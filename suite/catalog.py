@@ -111,7 +111,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, ClassVar
 
-from suite.road_network import RoadNetwork, RoadNetworkError
+from suite.road.network import RoadNetwork, RoadNetworkError
 
 __all__ = [
     "Catalog",
@@ -1007,7 +1007,7 @@ class _Loader:
             add("criteria", "a table of name -> finite number", criteria)
             criteria = {}
         else:
-            from suite.metrics.criteria import Criteria
+            from reports.metrics.criteria import Criteria
 
             valid = Criteria.names()
             for k, v in criteria.items():

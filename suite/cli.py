@@ -70,8 +70,8 @@ def _status_line(meta: dict[str, Any], done: int, total: int) -> str:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from reports import write_reports
-    from suite.executors import LocalExecutor, RayExecutor, RunJob
-    from suite.runner import RunOptions, write_json
+    from suite.exec.executors import LocalExecutor, RayExecutor, RunJob
+    from suite.run.runner import RunOptions, write_json
 
     cat, scenarios = _load(args.catalog, args.filter)
     out = Path(args.out)
@@ -137,7 +137,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    from suite.viewer import failed_runs, open_logs
+    from suite.rerun.viewer import failed_runs, open_logs
 
     target = Path(args.dir)
     if args.failed:

@@ -19,7 +19,7 @@ Pipeline per control step (all arrays, no libsumo calls):
    ``commit_offset_m`` towards it, is kept for that obstacle (no mid-manoeuvre
    flip-flopping).
 4. Ellipses: semi-axes and the offset OS away from the pass side from
-   :mod:`controllers.obstacle_geometry` (the ellipse contains the Minkowski sum
+   :mod:`controllers.behaviour.ellipses` (the ellipse contains the Minkowski sum
    of the two boxes plus margins; METHOD.md §4, Fig. 7).
 """
 
@@ -30,9 +30,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.obstacle_geometry import ellipse_semi_axes, offset_centre_y
+from controllers.behaviour.ellipses import ellipse_semi_axes, offset_centre_y
 from controllers.protocol import ObstaclePolicy, Obstacles
-from suite.world import Neighbours
+from suite.world.sumo import Neighbours
 
 SIDE_NONE = 0
 SIDE_LEFT = 1
@@ -304,7 +304,7 @@ def to_frenet(path: object, neighbours: Neighbours, ego_s: float, ego_x: float,
     """Project neighbours (box centres, velocities) onto the reference path.
 
     The ego's own projection (s at its CG) seeds every neighbour's, see
-    :meth:`controllers.frenet.FrenetPath.project_along`.
+    :meth:`controllers.path.frenet.FrenetPath.project_along`.
     """
     if neighbours.count == 0:
         z = np.zeros(0)

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from suite.run_record import (
+from reports.run_record import (
     CONTROLLER_ARRAYS,
     NEIGHBOUR_COLUMNS,
     NEIGHBOURS,

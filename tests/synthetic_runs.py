@@ -1,4 +1,4 @@
-"""Synthetic run directories (the run-record contract of ``suite.run_record``) for tests.
+"""Synthetic run directories (the run-record contract of ``reports.run_record``) for tests.
 
 Each ``*_trace`` builds a full trace DataFrame from a kinematic path with analytic
 velocities/accelerations; ``write_run`` writes run.json, road.json, trace.parquet,
@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from suite.run_record import NEIGHBOUR_COLUMNS, TRACE_COLUMNS
+from reports.run_record import NEIGHBOUR_COLUMNS, TRACE_COLUMNS
 
 EGO_LENGTH_M = 4.6
 EGO_WIDTH_M = 1.8

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from scipy.optimize import root
 
-from controllers.cgmres import cgmres_step
-from controllers.cgmres_outer import CgmresOuter, cgmres_updates
-from controllers.frenet import FrenetPath
+from controllers.two_loop.outer.gmres import cgmres_step
+from controllers.two_loop.outer.cgmres import CgmresOuter, cgmres_updates
+from controllers.path.frenet import FrenetPath
 from controllers.protocol import Obstacles
-from controllers.spmm_ocp import OuterParams, SpmmProblem, obstacle_table, pack_params
+from controllers.two_loop.outer.ocp import OuterParams, SpmmProblem, obstacle_table, pack_params
 
 STRAIGHT = np.array([[0.0, 0.0], [1000.0, 0.0]])
 
@@ -58,7 +58,7 @@ def _converge_fixed(params: OuterParams, obs: np.ndarray, x0: np.ndarray, vt: fl
     meta, coef, _ = path.tables()
     hz = np.array([0.0, params.horizon_s, params.horizon_growth_rate])
     cfg = np.array([params.k_max, params.zeta_s, params.fd_step, params.z_guard, params.zeta])
-    from controllers.cgmres_outer import work_size
+    from controllers.two_loop.outer.cgmres import work_size
 
     work = np.zeros(work_size(u.size, params.n_stages, params.k_max))
     xs = np.zeros((params.n_stages + 1, 3))
@@ -140,7 +140,7 @@ def test_guard_keeps_barrier_argument_positive() -> None:
     u[3 * m + 2] = -params.zeta + 0.01  # Z + zeta = 0.01 < z_guard
     u[5 * m + 2] = -params.zeta - 0.5  # already negative
     udot = np.zeros_like(u)
-    from controllers.cgmres_outer import work_size
+    from controllers.two_loop.outer.cgmres import work_size
 
     work = np.zeros(work_size(u.size, params.n_stages, params.k_max))
     stats = np.zeros(4)
@@ -303,7 +303,7 @@ def test_cgmres_converges_with_lateral_reference(cost: str) -> None:
     meta, coef, _ = path.tables()
     hz = np.array([0.0, params.horizon_s, params.horizon_growth_rate])
     cfg = np.array([params.k_max, params.zeta_s, params.fd_step, params.z_guard, params.zeta])
-    from controllers.cgmres_outer import work_size
+    from controllers.two_loop.outer.cgmres import work_size
 
     work = np.zeros(work_size(u.size, params.n_stages, params.k_max))
     xs = np.zeros((params.n_stages + 1, 3))
@@ -319,7 +319,7 @@ def test_cgmres_converges_with_lateral_reference(cost: str) -> None:
     assert stats[0] < 1e-7, stats[0]
     prm[12] = 0.0
     f = np.empty(u.size)
-    from controllers.spmm_ocp import ocp_residual
+    from controllers.two_loop.outer.ocp import ocp_residual
 
     ocp_residual(u, x0, params.horizon_s, 0.0, prm, obs, prob.w, meta, coef, xs,
                  np.empty((params.n_stages + 1, 12)), f)

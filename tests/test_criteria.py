@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 import synthetic_runs as sr
 
-from suite.metrics import Criteria, evaluate_run
-from suite.metrics.criteria import parse_failure
-from suite.run_record import load_run
+from reports.metrics import Criteria, evaluate_run
+from reports.metrics.criteria import parse_failure
+from reports.run_record import load_run
 
 
 def test_nuplan_defaults() -> None:

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from controllers.frenet import FrenetPath, path_gamma, path_point
+from controllers.path.frenet import FrenetPath, path_gamma, path_point
 
 
 def _arc(radius: float, angle: float, n: int) -> np.ndarray:

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from controllers.frenet import FrenetPath
-from controllers.inner_loop import convert, inner_step, plan_reference
-from controllers.vehicle_model import VehicleParams, stvm_rk4
+from controllers.path.frenet import FrenetPath
+from controllers.two_loop.preview import convert, inner_step, plan_reference
+from controllers.plant.vehicle_model import VehicleParams, stvm_rk4
 
 VP = VehicleParams()
 

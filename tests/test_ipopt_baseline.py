@@ -15,7 +15,7 @@ import pytest
 
 pytest.importorskip("casadi")
 
-from controllers.baselines.ipopt_outer import (  # noqa: E402
+from controllers.two_loop.outer.ipopt import (  # noqa: E402
     IpoptOuter,
     StraightPath,
     _pack_obstacles,
@@ -23,7 +23,7 @@ from controllers.baselines.ipopt_outer import (  # noqa: E402
     ellipse_values,
 )
 from controllers.protocol import ConfigError, Obstacles  # noqa: E402
-from controllers.spmm_ocp import OuterParams, SpmmProblem, obstacle_table  # noqa: E402
+from controllers.two_loop.outer.ocp import OuterParams, SpmmProblem, obstacle_table  # noqa: E402
 
 VT = 25.0
 PERIOD = 0.02
@@ -188,7 +188,7 @@ def test_bad_formulation_is_a_config_error() -> None:
 # ---------------------------------------------------------------- vs C/GMRES
 
 def _frenet_path(kind: str) -> Any:
-    from controllers.frenet import FrenetPath
+    from controllers.path.frenet import FrenetPath
 
     if kind == "straight":
         xy = np.array([[0.0, 0.0], [3000.0, 0.0]])
@@ -201,7 +201,7 @@ def _frenet_path(kind: str) -> Any:
 
 def test_path_lookup_reproduces_the_frenet_path_exactly() -> None:
     """The CasADi B-splines re-express FrenetPath's C² quintic gamma and its kappa."""
-    from controllers.baselines.ipopt_outer import PathLookup
+    from controllers.two_loop.outer.ipopt import PathLookup
 
     path = _frenet_path("curved")
     lookup = PathLookup(path)
@@ -263,7 +263,7 @@ def test_plan_matches_cgmres_converged_plan() -> None:
     continuation drives F -> 0 on an (almost) constant problem; its horizon has then
     grown to T (1 - e^-8). Ipopt solves the same OCP on C/GMRES's current stage grid.
     """
-    cg_mod = pytest.importorskip("controllers.cgmres_outer")
+    cg_mod = pytest.importorskip("controllers.two_loop.outer.cgmres")
     params = OuterParams()
     path = _frenet_path("straight")
     obs = _obstacle(40.0)
@@ -357,8 +357,8 @@ def test_closed_loop_passes_a_stalled_car() -> None:
     pass side), the boxes never overlap, Ipopt never fails.
     """
     from controllers.baselines.ipopt_nmpc import make_ipopt_nmpc
-    from controllers.closed_loop_sim import simulate
-    from controllers.obstacle_geometry import FrenetVehicle
+    from controllers.sim.closed_loop import simulate
+    from controllers.behaviour.ellipses import FrenetVehicle
 
     ctrl = make_ipopt_nmpc({})
     trace = simulate(ctrl, np.array([[0.0, 0.0], [600.0, 0.0]]),

@@ -9,19 +9,19 @@ import numpy as np
 import pytest
 import synthetic_runs as sr
 
-from suite.geometry import box_corners
-from suite.metrics import REQUIRED_METRICS, evaluate_run
-from suite.metrics.comfort import comfort_metrics, sg_window
-from suite.metrics.safety import (
+from reports.metrics.geometry import box_corners
+from reports.metrics import REQUIRED_METRICS, evaluate_run
+from reports.metrics.comfort import comfort_metrics, sg_window
+from reports.metrics.safety import (
     OFFROAD_TOLERANCE_M,
     min_ttc_rear_s,
     min_ttc_s,
     offroad_metrics,
     swept_box_ttc,
 )
-from suite.metrics.timing import timing_metrics
-from suite.metrics.tracking import progress_ratio
-from suite.run_record import load_run
+from reports.metrics.timing import timing_metrics
+from reports.metrics.tracking import progress_ratio
+from reports.run_record import load_run
 
 
 def _load(tmp_path: Path, trace, name: str = "run", **kw):

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from controllers.frenet import FrenetPath
-from controllers.obstacle_geometry import ellipse_semi_axes
+from controllers.path.frenet import FrenetPath
+from controllers.behaviour.ellipses import ellipse_semi_axes
 from controllers.protocol import ObstaclePolicy
-from suite.geometry import box_corners, box_distance
+from reports.metrics.geometry import box_corners, box_distance
 from suite.obstacles import (
     SIDE_FOLLOW,
     SIDE_LEFT,
@@ -23,7 +23,7 @@ from suite.obstacles import (
     gap_is_free,
     to_frenet,
 )
-from suite.world import Neighbours
+from suite.world.sumo import Neighbours
 
 W = 3.5
 THREE_LANES = {i: LaneSlot(i, W, True, False) for i in range(3)}

@@ -7,7 +7,7 @@ import pytest
 
 from controllers import registry
 from controllers.protocol import ConfigError, Controller, Observation, ScenarioContext
-from controllers.vehicle_model import VehicleParams
+from controllers.plant.vehicle_model import VehicleParams
 
 
 def test_builtins_are_registered() -> None:
@@ -49,7 +49,7 @@ def test_unknown_option_is_a_config_error_naming_it() -> None:
 
 
 def test_lane_keep_tracks_a_straight_lane_from_an_offset() -> None:
-    from controllers.vehicle_model import SingleTrackPlant
+    from controllers.plant.vehicle_model import SingleTrackPlant
 
     vehicle = VehicleParams()
     ref = np.array([[0.0, 0.0], [3000.0, 0.0]])

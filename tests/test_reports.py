@@ -15,7 +15,7 @@ import synthetic_runs as sr
 from reports import write_reports
 from reports.html import MAX_POINTS, decimate
 from reports.tables import LEAD_COLUMNS, scenario_family
-from suite.metrics import REQUIRED_METRICS
+from reports.metrics import REQUIRED_METRICS
 
 
 @pytest.fixture(scope="module")

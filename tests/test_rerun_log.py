@@ -15,9 +15,9 @@ import rerun as rr
 from rerun.chunk import RrdReader
 from rerun_fixtures import make_run_dir, read_chunks, render_birdseye, rows_at_step
 
-from suite.rerun_blueprint import default_blueprint
-from suite.rerun_log import ENTITY_PATHS, lane_edges, recording_id_for, write_rrd
-from suite.viewer import failed_runs, open_logs, resolve_logs, view_command
+from suite.rerun.blueprint import default_blueprint
+from suite.rerun.log import ENTITY_PATHS, lane_edges, recording_id_for, write_rrd
+from suite.rerun.viewer import failed_runs, open_logs, resolve_logs, view_command
 
 WORLD_PATHS = [
     "/world/road/lanes", "/world/road/shoulders", "/world/road/centrelines",

@@ -11,7 +11,7 @@ import pytest
 from rerun.chunk import RrdReader
 from rerun_fixtures import read_chunks, render_birdseye, rows_at_step
 
-from suite.rerun_log import recording_id_for
+from suite.rerun.log import recording_id_for
 
 pytestmark = pytest.mark.sumo
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from suite.road_network import (
+from suite.road.network import (
     RoadNetwork,
     RoadNetworkError,
     centreline_arclength,

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controllers.frenet import FrenetPath
-from controllers.spmm_ocp import (
+from controllers.path.frenet import FrenetPath
+from controllers.two_loop.outer.ocp import (
     OuterParams,
     SpmmProblem,
     constraint_eval,

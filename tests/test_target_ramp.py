@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controllers.spmm_ocp import TargetSpeedRamp
+from controllers.two_loop.outer.ocp import TargetSpeedRamp
 
 
 @pytest.mark.parametrize(("start", "goal"), [(0.0, 22.0), (25.0, 0.0), (20.0, 20.5)])

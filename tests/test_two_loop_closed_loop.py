@@ -10,19 +10,19 @@ import time
 import numpy as np
 import pytest
 
-from controllers.closed_loop_sim import (
+from controllers.sim.closed_loop import (
     pass_reference,
     plan_tracking_error,
     simulate,
     steering_chatter,
 )
-from controllers.frenet import FrenetPath
-from controllers.obstacle_geometry import FrenetVehicle, build_obstacles, ellipse_semi_axes
-from controllers.outer_protocol import OuterPlan
+from controllers.path.frenet import FrenetPath
+from controllers.behaviour.ellipses import FrenetVehicle, build_obstacles, ellipse_semi_axes
+from controllers.two_loop.outer.protocol import OuterPlan
 from controllers.protocol import ConfigError, Controller, Observation, ObstaclePolicy, Obstacles
-from controllers.spmm_ocp import OuterParams
-from controllers.two_loop import TwoLoopController, TwoLoopParams, make_two_loop
-from controllers.vehicle_model import VehicleParams
+from controllers.two_loop.outer.ocp import OuterParams
+from controllers.two_loop.controller import TwoLoopController, TwoLoopParams, make_two_loop
+from controllers.plant.vehicle_model import VehicleParams
 
 DT = 0.02
 STRAIGHT = np.array([[0.0, 0.0], [1500.0, 0.0]])
@@ -88,7 +88,7 @@ def test_ellipse_geometry_and_detection() -> None:
     ego = VehicleParams()
     a, b = ellipse_semi_axes(4.0, 1.8, ego.length_m, ego.width_m, pol)
     # The ellipse contains the box-sum rectangle (corner (2.0 + 2.4, 0.9 + 0.95) on it
-    # before the margins): see controllers.obstacle_geometry.
+    # before the margins): see controllers.behaviour.ellipses.
     b0 = 0.9 + 0.95 + 0.4
     a0 = (2.0 + 2.4) / math.sqrt(1.0 - ((0.9 + 0.95) / b0) ** 2)
     assert (a, b) == pytest.approx((a0 + 2.0, b0 + 0.3))

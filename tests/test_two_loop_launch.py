@@ -1,4 +1,4 @@
-"""Two-loop controller: low-speed launch / standstill handling (controllers.two_loop,
+"""Two-loop controller: low-speed launch / standstill handling (controllers.two_loop.controller,
 "Launch" in the module docstring), closed loop on the plant (no SUMO).
 
 The SUMO case: the ego follows and stops behind a stalled car (no side free); later a
@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from scipy.signal import savgol_filter
 
-from controllers.closed_loop_sim import FOLLOW_SIDE, simulate
-from controllers.obstacle_geometry import FrenetVehicle
+from controllers.sim.closed_loop import FOLLOW_SIDE, simulate
+from controllers.behaviour.ellipses import FrenetVehicle
 from controllers.protocol import ConfigError
-from controllers.two_loop import TwoLoopParams, make_two_loop
-from controllers.vehicle_model import VehicleParams
+from controllers.two_loop.controller import TwoLoopParams, make_two_loop
+from controllers.plant.vehicle_model import VehicleParams
 from suite.obstacles import GapPolicy, follow_speed_mps
 
 DT = 0.02

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from controllers.vehicle_model import SingleTrackPlant, VehicleParams, stvm_derivative
+from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams, stvm_derivative
 
 
 def test_constant_speed_straight_line_is_distance_speed_times_time() -> None:

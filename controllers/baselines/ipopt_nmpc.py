@@ -1,9 +1,9 @@
 """``ipopt_nmpc``: the two-loop controller with the Ipopt outer loop (METHOD.md §8, result 3).
 
 Same conversion, preview inner loop, Frenet projection and obstacle policy as
-``two_loop`` (:class:`controllers.two_loop.TwoLoopController`, reused through its
+``two_loop`` (:class:`controllers.two_loop.controller.TwoLoopController`, reused through its
 ``outer_factory``); only the outer solver differs:
-:class:`controllers.baselines.ipopt_outer.IpoptOuter`, which solves the same
+:class:`controllers.two_loop.outer.ipopt.IpoptOuter`, which solves the same
 Euler-discretised J3 problem to convergence with Ipopt at every control period
 (one update per period; the C/GMRES-only keys k_max, zeta_s, fd_step, sub_updates,
 horizon_growth_rate, z_guard, fallback_residual are accepted and ignored).
@@ -29,12 +29,12 @@ import importlib.util
 from collections.abc import Mapping
 from typing import Any
 
-from controllers.baselines.ipopt_outer import FORMULATIONS
-from controllers.frenet import FrenetPath
+from controllers.two_loop.outer.ipopt import FORMULATIONS
+from controllers.path.frenet import FrenetPath
 from controllers.protocol import ConfigError
 from controllers.registry import check_options
-from controllers.spmm_ocp import OuterParams
-from controllers.two_loop import _OPTION_TYPES, TwoLoopController, TwoLoopParams
+from controllers.two_loop.outer.ocp import OuterParams
+from controllers.two_loop.controller import _OPTION_TYPES, TwoLoopController, TwoLoopParams
 
 if importlib.util.find_spec("casadi") is None:  # builtin.py registers us only with CasADi
     raise ImportError("ipopt_nmpc needs CasADi (pip install 'hwyeval[baselines]')")
@@ -59,7 +59,7 @@ class IpoptNmpcController(TwoLoopController):
                          outer_factory=self._make_outer)
 
     def _make_outer(self, path: FrenetPath, outer_params: OuterParams) -> Any:
-        from controllers.baselines.ipopt_outer import IpoptOuter
+        from controllers.two_loop.outer.ipopt import IpoptOuter
 
         outer = IpoptOuter(path, outer_params, formulation=self.formulation,
                            max_iter=self.max_iter, tol=self.ipopt_tol)

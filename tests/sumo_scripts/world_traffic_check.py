@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.vehicle_model import VehicleParams
+from controllers.plant.vehicle_model import VehicleParams
 from suite.catalog import load_catalog
-from suite.road_network import RoadNetwork
-from suite.world import SumoWorld
+from suite.road.network import RoadNetwork
+from suite.world.sumo import SumoWorld
 
 
 def main() -> None:

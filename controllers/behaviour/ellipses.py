@@ -1,0 +1,100 @@
+"""Obstacle ellipses for the outer loop (METHOD.md §4), pure functions shared with ``suite``.
+
+An obstacle vehicle (box length L_o, width W_o, centre (s, y) in the reference-path
+Frenet frame) becomes an ellipse around the Minkowski sum of the two boxes (the
+SPMM is a point at the ego CG), a rectangle of half sizes
+
+    a = L_o/2 + L_ego/2,    b = W_o/2 + W_ego/2.
+
+An ellipse with semi-axes a and b is *inscribed* in that rectangle: its corners
+stick out ((a/a)^2 + (b/b)^2 = 2 > 1), so c >= 0 would not exclude contact. We
+therefore take the across-axis first and stretch the along-axis until the
+rectangle's corners lie on the ellipse, then add the margins:
+
+    B0 = b + margin_lat_m,   A0 = a / sqrt(1 - (b/B0)^2)      (corner (a, b) on it)
+    A  = A0 + margin_long_m, B  = B0 + offset_m               [m]
+
+A long, narrow ellipse suits highway passing better than the minimum-area
+(sqrt(2)-scaled) one, which would be 2.7 m wide for two cars. The centre is
+shifted by ``offset_m`` *away* from the pass side (pass_side = +1: pass on the
+left, so the centre moves right: y - offset), which breaks the tie of an obstacle
+sitting on the reference path (paper Fig. 7); B includes ``offset_m`` so that the
+shift never eats into the margin on the pass side. With pass_side = 0 (no free
+side / follow mode) there is no shift.
+
+Detection: Euclidean distance in (s, y) from the ego CG to the obstacle centre
+below ``detection_distance_m`` and not more than ``rear_range_m`` behind the CG;
+nearest first, at most ``max_obstacles``. Without ``moving_obstacles``, only
+(near-)stationary vehicles (|v| < 0.5 m/s) are kept and their speed is zeroed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from controllers.protocol import ObstaclePolicy, Obstacles
+from controllers.plant.vehicle_model import VehicleParams
+
+
+@dataclass(frozen=True)
+class FrenetVehicle:
+    """Another vehicle in the reference-path Frenet frame (box centre, box size, velocity)."""
+
+    s_m: float
+    y_m: float
+    length_m: float = 4.8
+    width_m: float = 1.9
+    speed_s_mps: float = 0.0
+    speed_y_mps: float = 0.0
+
+
+def ellipse_semi_axes(obstacle_length_m: float, obstacle_width_m: float, ego_length_m: float,
+                      ego_width_m: float, policy: ObstaclePolicy) -> tuple[float, float]:
+    """(A, B) [m] as in the module docstring: the ellipse contains the box-sum rectangle."""
+    a = 0.5 * obstacle_length_m + 0.5 * ego_length_m
+    b = 0.5 * obstacle_width_m + 0.5 * ego_width_m
+    b0 = b + max(policy.margin_lat_m, 0.05)  # a strictly positive margin keeps A0 finite
+    a0 = a / np.sqrt(1.0 - (b / b0) ** 2)
+    return float(a0 + policy.margin_long_m), float(b0 + policy.offset_m)
+
+
+def offset_centre_y(y_m: float, pass_side: int, policy: ObstaclePolicy) -> float:
+    """Centre y shifted by offset_m away from the pass side (no shift if pass_side = 0)."""
+    return float(y_m) - float(np.sign(pass_side)) * policy.offset_m
+
+
+def build_obstacles(ego_s_m: float, ego_y_m: float, vehicles: Sequence[FrenetVehicle],
+                    policy: ObstaclePolicy, ego: VehicleParams, pass_side: int) -> Obstacles:
+    """Detected vehicles -> :class:`Obstacles` (nearest first), see module docstring."""
+    rows = []
+    for veh in vehicles:
+        ds = veh.s_m - ego_s_m
+        dist = float(np.hypot(ds, veh.y_m - ego_y_m))
+        if dist > policy.detection_distance_m or ds < -policy.rear_range_m:
+            continue
+        vs, vy = veh.speed_s_mps, veh.speed_y_mps
+        if not policy.moving_obstacles:
+            if np.hypot(vs, vy) > 0.5:
+                continue
+            vs, vy = 0.0, 0.0
+        a, b = ellipse_semi_axes(veh.length_m, veh.width_m, ego.length_m, ego.width_m, policy)
+        rows.append((dist, veh.s_m, offset_centre_y(veh.y_m, pass_side, policy), vs, vy, a, b))
+    rows.sort(key=lambda r: r[0])
+    rows = rows[:policy.max_obstacles]
+    if not rows:
+        return Obstacles.empty()
+    arr = np.array(rows, dtype=np.float64)
+    return Obstacles(s_m=arr[:, 1].copy(), y_m=arr[:, 2].copy(), speed_s_mps=arr[:, 3].copy(),
+                     speed_y_mps=arr[:, 4].copy(), semi_a_m=arr[:, 5].copy(),
+                     semi_b_m=arr[:, 6].copy())
+
+
+def ellipse_value(s_m: np.ndarray | float, y_m: np.ndarray | float, centre_s_m: float,
+                  centre_y_m: float, semi_a_m: float, semi_b_m: float) -> np.ndarray:
+    """c = (s - s_c)²/A² + (y - y_c)²/B² - 1 (< 0 inside)."""
+    s = np.asarray(s_m, dtype=np.float64)
+    y = np.asarray(y_m, dtype=np.float64)
+    return (s - centre_s_m) ** 2 / semi_a_m**2 + (y - centre_y_m) ** 2 / semi_b_m**2 - 1.0

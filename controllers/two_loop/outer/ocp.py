@@ -1,0 +1,763 @@
+"""The outer loop's optimal-control problem: SPMM in the Frenet frame (METHOD.md §2-§5).
+
+Discretised problem (Euler, stage nodes tau_0 = 0 < tau_1 < ... < tau_N = T):
+
+    x_{i+1} = x_i + f(x_i, u_i) dtau_i,              dtau_i = tau_{i+1} - tau_i
+    min  sum_i dtau_i L(x_i, u_i) + m(x_N)
+    s.t. c_j(x_i, t + tau_i) - Z_ij^2 = 0            (i >= 1, active slots j)
+
+Models and costs (e = theta - gamma(s), D = 1 - y kappa(s)):
+
+* J1, J2 (model (10)): x = (s, y), u = (theta, V, Z_1..Z_K)
+* J3 (model (36)):     x = (s, y, theta), u = (V, omega, Z_1..Z_K)
+* f1 = V cos(e)/D, f2 = V sin(e)  (and theta' = omega for J3)
+
+    J1: L = Cy (y - yr)² + Ctheta e² + CV (V - Vt)² - Cz sum ln(Z_j + zeta)
+    J2: L = Cy (y - yr)² + Cyd f2² + Csd (f1 - Vt)² - Cz sum ln(Z_j + zeta)
+    J3: L = J2's L + Cthd omega²
+
+yr: the lateral reference [m] (``Observation.lateral_reference_m``, smoothed by the
+two-loop controller): a per-update parameter, constant over the horizon, packed with
+the other per-update data (``pack_params(..., lateral_reference_m)``), so the kernels
+are compiled once. yr = 0 is the paper's Cy y². Its rate ``yr'`` [m/s] is packed too:
+the C/GMRES kernel moves yr linearly across one control period and through the F_t
+forward difference (a moving parameter enters F_t like the obstacles' motion);
+``ocp_residual`` itself only reads yr.
+
+Terminal cost (not in the paper; a small documented addition that damps the
+free end of the horizon): m = CyT (y_N - yr)² + CeT e_N² for J3, m = CyT (y_N - yr)²
+for J1/J2.
+
+Obstacle j (ellipse, slack form (b) of METHOD §4):
+    c_j = (s - s_j - v_sj tau)²/A² + (y - y_j - v_yj tau)²/B² - 1,   c_j - Z_j² = 0
+
+Hamiltonian of stage i: H = L + sum_j mu_j (c_j - Z_j²) + p_{i+1}·f. With
+a1 = 2 Csd (f1 - Vt) + p_s, a2 = 2 Cyd f2 + p_y (J2/J3; for J1 a1 = p_s, a2 = p_y):
+
+    H_s = a1 (V kappa sin e / D + V y kappa' cos e / D²) - a2 V kappa cos e
+          + sum mu_j dc_j/ds   (- 2 Ctheta e kappa for J1)
+    H_y = 2 Cy (y - yr) + a1 V kappa cos e / D² + sum mu_j dc_j/dy
+    H_theta = -a1 V sin e / D + a2 V cos e        (+ 2 Ctheta e for J1's input theta)
+    H_V = a1 cos e / D + a2 sin e                 (+ 2 CV (V - Vt) for J1)
+    H_omega = 2 Cthd omega + p_theta              (J3)
+    H_Zj = -Cz / (Z_j + zeta) - 2 mu_j Z_j,   H_muj = c_j - Z_j²
+
+Costate: p_N = dm/dx(x_N), p_i = p_{i+1} + H_x(x_i, u_i, mu_i, p_{i+1}) dtau_i.
+Residual F(U) = [H_u(x_i, u_i, mu_i, p_{i+1}); c(x_i) - Z_i²]_{i=0..N-1} is exactly the
+gradient of the discrete Lagrangian divided by dtau_i (so F = 0 is its KKT system).
+
+Per-stage unknowns (m = 2 + 2K): [u_a, u_b, Z_1..Z_K, mu_1..mu_K] where (u_a, u_b) =
+(theta, V) for J1/J2 and (V, omega) for J3. Stage 0's constraint rows and empty
+obstacle slots get trivial rows Z - 1 = 0, mu = 0 (METHOD §9: x_0 is measured, so
+its constraint cannot change the solution; this keeps F defined when the measured
+state touches an ellipse, and makes empty slots inert).
+
+Packed parameter vector (``pack_params``): see ``_P_*`` indices below.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numba
+import numpy as np
+
+from controllers.path.frenet import FrenetPath, path_gamma
+
+COSTS = ("J1", "J2", "J3")
+
+
+class TargetSpeedRamp:
+    """Jerk-limited target speed V_t(t) for the OCP, shared by every outer solver.
+
+    Time-optimal under |a| <= accel/decel and |da/dt| <= j: with e = set point - V_t
+    and e_stop = e - 1.5 a dt - a |a| / (2 j) (what is left once the ramp's
+    acceleration a has been brought back to zero at the jerk limit, discretely), a is
+    driven at most j dt per
+    update towards +accel if e_stop > 0, else -decel; V_t <- V_t + a dt. Once the
+    set point is within one step and |a| <= j dt, V_t lands on it with a = 0.
+
+    V_t, a and hence the OCP's cost change continuously, so neither the continuation
+    nor the car sees a step in speed or acceleration (a bare rate limit switches the
+    acceleration on at once: a jerk spike at every start and braking onset).
+    """
+
+    def __init__(self, accel_mps2: float, decel_mps2: float, jerk_mps3: float) -> None:
+        self.accel_mps2 = float(accel_mps2)
+        self.decel_mps2 = float(decel_mps2)
+        self.jerk_mps3 = float(jerk_mps3)
+        self.speed_mps = 0.0
+        self.ramp_accel_mps2 = 0.0
+
+    def reset(self, speed_mps: float) -> None:
+        self.speed_mps = float(speed_mps)
+        self.ramp_accel_mps2 = 0.0
+
+    def update(self, set_speed_mps: float, dt_s: float) -> float:
+        """Advance by ``dt_s`` towards ``set_speed_mps``; returns V_t [m/s]."""
+        if dt_s <= 0.0:
+            return self.speed_mps
+        target = float(set_speed_mps)
+        a = self.ramp_accel_mps2
+        step = self.jerk_mps3 * dt_s
+        err = target - self.speed_mps
+        if abs(err) <= step * dt_s and abs(a) <= step:
+            self.speed_mps, self.ramp_accel_mps2 = target, 0.0
+            return self.speed_mps
+        # Left over after this step (a dt) and after ramping a to zero from the next one
+        # (a|a|/2j, plus half a step for the discrete ramp).
+        e_stop = err - 1.5 * a * dt_s - a * abs(a) / (2.0 * self.jerk_mps3)
+        a_goal = self.accel_mps2 if e_stop > 0.0 else -self.decel_mps2
+        a += min(max(a_goal - a, -step), step)
+        self.ramp_accel_mps2 = a
+        self.speed_mps = max(self.speed_mps + a * dt_s, 0.0)
+        return self.speed_mps
+
+# Indices into the packed parameter vector.
+_P_COST, _P_CY, _P_CYD, _P_CSD, _P_CTHD, _P_CTH, _P_CV, _P_CZ, _P_ZETA = range(9)
+_P_CYT, _P_CET, _P_VT, _P_SCALE = 9, 10, 11, 12
+_P_YREF, _P_YREFD = 13, 14  # lateral reference yr [m] and its rate [m/s] (C/GMRES only)
+_P_CYR = 15  # rate of Cy [1/(m² s²)] when the caller schedules it (C/GMRES only)
+N_PACKED = 16
+# Fast-math flags for the hot kernels: no 'nnan'/'ninf', so non-finite checks stay valid.
+_FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
+# Obstacle table columns: s, y, v_s, v_y, A, B, active, barrier weight w, dw/dt.
+OBS_COLS = 9
+
+
+@dataclass(frozen=True)
+class OuterParams:
+    """Outer-loop (SPMM NLMPC) parameters, shared by C/GMRES and the Ipopt baseline.
+
+    cost: 'J1' | 'J2' | 'J3' (METHOD §3).
+    horizon_s: prediction horizon T [s]; n_stages: N; chebyshev: Chebyshev stage
+        spacing tau_i = (T/2)(1 - cos(i pi / N)) instead of uniform (uniform by
+        default: at N = 20 Chebyshev gave a larger E, max 1.2 vs 0.5 on the
+        straight-road obstacle case, for the same avoidance).
+    k_max: 12 by default: with row scaling, 12 Krylov vectors reach the same E as 16
+        (and as exact GMRES) on our cases; without it METHOD §9 needed 16.
+    n_obstacles: obstacle slots K in the problem (slack + multiplier each).
+    c_y [1/(m² s)], c_ydot [s/m²], c_sdot [s/m²], c_thetadot [s/rad²],
+        c_theta [1/(rad² s)] (J1), c_v [s/m²] (J1): running-cost weights.
+    c_z [1/s]: barrier weight; zeta [-]: barrier offset (ln(Z + zeta)).
+    c_y_terminal [1/m²], c_e_terminal [1/rad²]: terminal weights on y_N and e_N
+        (default: heading only; a terminal weight on y stiffened the horizon's end
+        and doubled E and the steering chatter when the obstacle entered it).
+    k_max: GMRES iterations per update; zeta_s [1/s]: continuation gain;
+    fd_step: forward-difference step h [s] (also the U-direction step);
+    sub_updates: continuation updates per control period.
+    horizon_growth_rate [1/s]: T(t) = T_f (1 - exp(-rate (t - t_init))), which makes
+        the t_init solution exact in closed form.
+    target_accel_mps2 / target_decel_mps2 / target_jerk_mps3: limits of the
+        target-speed ramp fed to the OCP (:class:`TargetSpeedRamp`; the paper ramps
+        Vtarget; a step would kick the continuation, an acceleration step is jerk).
+    z_guard: minimum Z + zeta kept by the guard after every Euler step.
+    row_scaling: C/GMRES works on D(U) F with D a diagonal estimate of F_U's
+        diagonal (same roots); E is always reported on the unscaled F.
+    obstacle_fade_s [s]: an obstacle's barrier weight ramps from 0 to Cz over this
+        time when it enters the problem, and back to 0 when it leaves (a step would
+        jump the costates and E; the fade enters F_t like the obstacle's motion).
+    fallback_residual: E above which (or non-finite) the solver is re-initialised
+        and the car brakes along the lane; fallback_decel_mps2, fallback_hold_s:
+        that braking plan's deceleration and duration.
+    """
+
+    cost: str = "J3"
+    horizon_s: float = 2.4
+    n_stages: int = 20
+    chebyshev: bool = False
+    n_obstacles: int = 3
+    c_y: float = 1.0
+    c_ydot: float = 1.0
+    c_sdot: float = 3.0
+    c_thetadot: float = 60.0
+    c_theta: float = 20.0
+    c_v: float = 1.0
+    c_z: float = 30.0
+    zeta: float = 0.2
+    c_y_terminal: float = 0.0
+    c_e_terminal: float = 2.0
+    k_max: int = 12
+    zeta_s: float = 50.0
+    fd_step: float = 1e-6
+    sub_updates: int = 3
+    horizon_growth_rate: float = 2.0
+    target_accel_mps2: float = 1.5
+    target_decel_mps2: float = 3.0
+    target_jerk_mps3: float = 2.0
+    z_guard: float = 0.05
+    obstacle_fade_s: float = 0.5
+    row_scaling: bool = True
+    fallback_residual: float = 50.0
+    fallback_decel_mps2: float = 3.0
+    fallback_hold_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.cost not in COSTS:
+            raise ValueError(f"OuterParams.cost must be one of {COSTS}, got {self.cost!r}")
+        for name in ("horizon_s", "c_z", "zeta", "zeta_s", "fd_step", "horizon_growth_rate",
+                     "target_accel_mps2", "target_decel_mps2", "target_jerk_mps3", "z_guard",
+                     "fallback_residual",
+                     "obstacle_fade_s",
+                     "fallback_decel_mps2"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                    and v > 0):
+                raise ValueError(f"OuterParams.{name} must be a finite number > 0, got {v!r}")
+        for name in ("c_y", "c_ydot", "c_sdot", "c_thetadot", "c_theta", "c_v",
+                     "c_y_terminal", "c_e_terminal", "fallback_hold_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                    and v >= 0):
+                raise ValueError(f"OuterParams.{name} must be a finite number >= 0, got {v!r}")
+        for name, lo in (("n_stages", 2), ("n_obstacles", 0), ("k_max", 1), ("sub_updates", 1)):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= lo):
+                raise ValueError(f"OuterParams.{name} must be an int >= {lo}, got {v!r}")
+        if self.z_guard >= self.zeta:
+            raise ValueError("OuterParams.z_guard must be < zeta")
+        if self.cost == "J3" and self.c_thetadot <= 0:
+            raise ValueError("OuterParams.c_thetadot must be > 0 for J3 (H_omega is linear)")
+        if self.cost in ("J2", "J3") and (self.c_sdot <= 0 or self.c_ydot <= 0):
+            raise ValueError("OuterParams.c_sdot and c_ydot must be > 0 for J2/J3")
+        if self.cost == "J1" and (self.c_theta <= 0 or self.c_v <= 0):
+            raise ValueError("OuterParams.c_theta and c_v must be > 0 for J1")
+
+    @property
+    def cost_id(self) -> int:
+        return COSTS.index(self.cost) + 1
+
+    @property
+    def stage_width(self) -> int:
+        """Unknowns per stage m = 2 + 2K."""
+        return 2 + 2 * self.n_obstacles
+
+    @property
+    def n_unknowns(self) -> int:
+        return self.n_stages * self.stage_width
+
+    def as_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+def stage_fractions(params: OuterParams) -> np.ndarray:
+    """tau_i / T, shape (N+1,), from 0 to 1 (uniform or Chebyshev)."""
+    i = np.arange(params.n_stages + 1, dtype=np.float64)
+    if params.chebyshev:
+        w = 0.5 * (1.0 - np.cos(i * np.pi / params.n_stages))
+    else:
+        w = i / params.n_stages
+    w[0], w[-1] = 0.0, 1.0
+    return w
+
+
+def stage_times(params: OuterParams, horizon_s: float | None = None) -> np.ndarray:
+    """Stage nodes tau_i [s], shape (N+1,), for the full (or a given) horizon."""
+    return stage_fractions(params) * (params.horizon_s if horizon_s is None else horizon_s)
+
+
+def pack_params(params: OuterParams, target_speed_mps: float,
+                lateral_reference_m: float = 0.0, lateral_reference_rate_mps: float = 0.0,
+                lateral_weight: float | None = None, lateral_weight_rate: float = 0.0,
+                ) -> np.ndarray:
+    """Packed float vector for the compiled kernels (per-update data included).
+
+    target_speed_mps: Vt; lateral_reference_m: yr in Cy (y - yr)² and CyT (y_N - yr)²;
+    lateral_weight: Cy of this update (None: params.c_y; a caller may schedule it);
+    the rates yr' and Cy' are used by :func:`controllers.two_loop.outer.cgmres.cgmres_updates`
+    to move yr and Cy across a control period (ignored by the residual itself).
+    """
+    out = np.zeros(N_PACKED)
+    out[_P_COST] = params.cost_id
+    out[_P_CY] = params.c_y if lateral_weight is None else lateral_weight
+    out[_P_CYD] = params.c_ydot
+    out[_P_CSD] = params.c_sdot
+    out[_P_CTHD] = params.c_thetadot
+    out[_P_CTH] = params.c_theta
+    out[_P_CV] = params.c_v
+    out[_P_CZ] = params.c_z
+    out[_P_ZETA] = params.zeta
+    out[_P_CYT] = params.c_y_terminal
+    out[_P_CET] = params.c_e_terminal
+    out[_P_VT] = target_speed_mps
+    out[_P_SCALE] = 1.0 if params.row_scaling else 0.0
+    out[_P_YREF] = lateral_reference_m
+    out[_P_YREFD] = lateral_reference_rate_mps
+    out[_P_CYR] = lateral_weight_rate
+    return out
+
+
+def obstacle_table(n_slots: int) -> np.ndarray:
+    """Empty obstacle table (K, 9).
+
+    Columns: s, y [m] and v_s, v_y [m/s] at the table's time stamp, A, B [m],
+    active (0/1), barrier weight w in [0, 1] at the time stamp, dw/dt [1/s].
+    Slot j's barrier weight at update time t is Cz clip(w + dw/dt (t - t_stamp), 0, 1):
+    obstacles fade in and out of the problem instead of switching (see
+    ``controllers.two_loop.outer.cgmres``); the fade enters F_t like the obstacle's motion.
+    """
+    tab = np.zeros((n_slots, OBS_COLS))
+    tab[:, 4] = 1.0
+    tab[:, 5] = 1.0
+    tab[:, 7] = 1.0
+    return tab
+
+
+@numba.njit(cache=True, inline="always")
+def slot_weight(ob: np.ndarray, tshift: float) -> float:
+    """Barrier weight factor clip(w + dw/dt tshift, 0, 1) of one obstacle row."""
+    wgt = ob[7] + ob[8] * tshift
+    if wgt < 0.0:
+        return 0.0
+    if wgt > 1.0:
+        return 1.0
+    return wgt
+
+
+# ----------------------------------------------------------------------------- kernels
+@numba.njit(cache=True, inline="always")
+def constraint_eval(s: float, y: float, tau: float, ob: np.ndarray) -> tuple[float, float, float]:
+    """(c, dc/ds, dc/dy) of one obstacle row ``ob`` at time offset tau [s]."""
+    ds = s - (ob[0] + ob[2] * tau)
+    dy = y - (ob[1] + ob[3] * tau)
+    ia2 = 1.0 / (ob[4] * ob[4])
+    ib2 = 1.0 / (ob[5] * ob[5])
+    return ds * ds * ia2 + dy * dy * ib2 - 1.0, 2.0 * ds * ia2, 2.0 * dy * ib2
+
+
+@numba.njit(cache=True, inline="always")
+def stage_geometry(x: np.ndarray, u: np.ndarray, prm: np.ndarray, meta: np.ndarray,
+                   coef: np.ndarray, geo: np.ndarray) -> None:
+    """Path geometry and model terms of one stage into geo (9,).
+
+    geo = [gamma, kappa, kappa', cos e, sin e, D, f1, f2, theta] (theta: the heading
+    actually used: the state for J3, the input for J1/J2).
+    """
+    cost = int(prm[_P_COST])
+    if cost == 3:
+        v = u[0]
+        th = x[2]
+    else:
+        th = u[0]
+        v = u[1]
+    g, kap, dkap = path_gamma(meta, coef, x[0])
+    e = th - g
+    d = 1.0 - x[1] * kap
+    ce = math.cos(e)
+    se = math.sin(e)
+    geo[0] = g
+    geo[1] = kap
+    geo[2] = dkap
+    geo[3] = ce
+    geo[4] = se
+    geo[5] = d
+    geo[6] = v * ce / d
+    geo[7] = v * se
+    geo[8] = th
+
+
+@numba.njit(cache=True, inline="always")
+def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,
+                   with_constraints: bool, prm: np.ndarray, obs: np.ndarray, czw: np.ndarray,
+                   geo: np.ndarray, f_out: np.ndarray, hx_out: np.ndarray,
+                   hu_out: np.ndarray) -> float:
+    """Stage Hamiltonian, f, H_x and residual rows given :func:`stage_geometry`'s geo.
+
+    czw (K,): barrier weight Cz of every slot (Cz times its fade factor).
+    """
+    cost = int(prm[_P_COST])
+    k_obs = obs.shape[0]
+    s = x[0]
+    y = x[1]
+    if cost == 3:
+        v = u[0]
+        om = u[1]
+    else:
+        v = u[1]
+        om = 0.0
+    kap = geo[1]
+    dkap = geo[2]
+    ce = geo[3]
+    se = geo[4]
+    d = geo[5]
+    f1 = geo[6]
+    f2 = geo[7]
+    e = geo[8] - geo[0]
+    inv_d = 1.0 / d
+    f1_s = v * (kap * se * inv_d + y * dkap * ce * inv_d * inv_d)
+    f1_y = v * ce * kap * inv_d * inv_d
+    f1_th = -v * se * inv_d
+    f1_v = ce * inv_d
+    f2_s = -v * kap * ce
+    f2_th = v * ce
+    f2_v = se
+    vt = prm[_P_VT]
+    cy = prm[_P_CY]
+    ey = y - prm[_P_YREF]
+    ps = p[0]
+    py = p[1]
+    pth = p[2]
+    if cost == 1:
+        cth = prm[_P_CTH]
+        cv = prm[_P_CV]
+        a1 = ps
+        a2 = py
+        hval = cy * ey * ey + cth * e * e + cv * (v - vt) ** 2
+        hs = -2.0 * cth * e * kap + a1 * f1_s + a2 * f2_s
+        hy = 2.0 * cy * ey + a1 * f1_y
+        hth = 0.0
+        hu_out[0] = 2.0 * cth * e + a1 * f1_th + a2 * f2_th
+        hu_out[1] = 2.0 * cv * (v - vt) + a1 * f1_v + a2 * f2_v
+    else:
+        csd = prm[_P_CSD]
+        cyd = prm[_P_CYD]
+        a1 = 2.0 * csd * (f1 - vt) + ps
+        a2 = 2.0 * cyd * f2 + py
+        hval = cy * ey * ey + cyd * f2 * f2 + csd * (f1 - vt) ** 2
+        hs = a1 * f1_s + a2 * f2_s
+        hy = 2.0 * cy * ey + a1 * f1_y
+        if cost == 3:
+            cthd = prm[_P_CTHD]
+            hval += cthd * om * om
+            hth = a1 * f1_th + a2 * f2_th
+            hu_out[0] = a1 * f1_v + a2 * f2_v
+            hu_out[1] = 2.0 * cthd * om + pth
+        else:
+            hth = 0.0
+            hu_out[0] = a1 * f1_th + a2 * f2_th
+            hu_out[1] = a1 * f1_v + a2 * f2_v
+    hval += ps * f1 + py * f2
+    if cost == 3:
+        hval += pth * om
+    zeta = prm[_P_ZETA]
+    for j in range(k_obs):
+        z = u[2 + j]
+        mu = u[2 + k_obs + j]
+        cz = czw[j]
+        if with_constraints and obs[j, 6] > 0.5:
+            c, cs, cyy = constraint_eval(s, y, tau, obs[j])
+            zz = z + zeta
+            if zz < 1e-9:
+                zz = 1e-9
+            hval += -cz * math.log(zz) + mu * (c - z * z)
+            hs += mu * cs
+            hy += mu * cyy
+            hu_out[2 + j] = -cz / zz - 2.0 * mu * z
+            hu_out[2 + k_obs + j] = c - z * z
+        else:
+            hu_out[2 + j] = z - 1.0
+            hu_out[2 + k_obs + j] = mu
+    f_out[0] = f1
+    f_out[1] = f2
+    f_out[2] = om if cost == 3 else 0.0
+    hx_out[0] = hs
+    hx_out[1] = hy
+    hx_out[2] = hth
+    return hval
+
+
+@numba.njit(cache=True)
+def stage_eval(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float, with_constraints: bool,
+               prm: np.ndarray, obs: np.ndarray, meta: np.ndarray, coef: np.ndarray,
+               f_out: np.ndarray, hx_out: np.ndarray, hu_out: np.ndarray) -> float:
+    """One stage: returns H and fills f (3,), H_x (3,), residual rows (m,).
+
+    x = (s, y, theta) (theta ignored for J1/J2), u = stage unknowns (m,),
+    p = (p_s, p_y, p_theta) = p_{i+1}. ``with_constraints`` False (stage 0) makes the
+    slack/multiplier rows trivial. For J1/J2 f_out[2] = 0 and hx_out[2] = 0.
+    """
+    geo = np.empty(9)
+    stage_geometry(x, u, prm, meta, coef, geo)
+    czw = np.empty(obs.shape[0])
+    for j in range(obs.shape[0]):
+        czw[j] = prm[_P_CZ] * slot_weight(obs[j], 0.0)
+    return stage_eval_geo(x, u, p, tau, with_constraints, prm, obs, czw, geo, f_out, hx_out,
+                          hu_out)
+
+
+@numba.njit(cache=True)
+def terminal_eval(x: np.ndarray, prm: np.ndarray, meta: np.ndarray, coef: np.ndarray,
+                  mx_out: np.ndarray) -> float:
+    """Terminal cost m(x_N) and its gradient (3,)."""
+    cost = int(prm[_P_COST])
+    cyt = prm[_P_CYT]
+    y = x[1] - prm[_P_YREF]
+    mx_out[0] = 0.0
+    mx_out[1] = 2.0 * cyt * y
+    mx_out[2] = 0.0
+    val = cyt * y * y
+    if cost == 3:
+        cet = prm[_P_CET]
+        g, kap, _ = path_gamma(meta, coef, x[0])
+        e = x[2] - g
+        val += cet * e * e
+        mx_out[0] = -2.0 * cet * e * kap
+        mx_out[2] = 2.0 * cet * e
+    return val
+
+
+@numba.njit(cache=True, fastmath=_FM)
+def ocp_residual(uvec: np.ndarray, x0: np.ndarray, horizon: float, tshift: float,
+                 prm: np.ndarray, obs: np.ndarray, w: np.ndarray, meta: np.ndarray,
+                 coef: np.ndarray, xs: np.ndarray, ps: np.ndarray, f_out: np.ndarray) -> None:
+    """F(U, x0, t) (length N m) into ``f_out``; states (N+1, 3) into ``xs``, costates into ``ps``.
+
+    horizon: current T [s]; tshift: time of the update minus the obstacles' time
+    stamp [s] (obstacle j is at s_j + v_sj (tshift + tau_i) at stage i).
+    For J1/J2 xs[i, 2] holds the planned heading input theta_i (xs[N, 2] = theta_{N-1}).
+    ``ps`` must have N+1 rows and at least 12 columns: columns 3.. hold the stage
+    geometry of the forward pass, reused by the backward pass.
+
+    Row scaling (packed flag, ``OuterParams.row_scaling``): F is returned as D(U) F,
+    every row divided by an estimate of its diagonal Jacobian entry (same roots), so
+    that the Krylov solver sees rows of comparable size (METHOD §9: the slack rows
+    make F_U ill-conditioned): H_V / (2 Csd), H_omega / (2 Cthd) (J3); H_theta /
+    (2 Cyd V²), H_V / (2 Csd) (J2); H_theta / (2 Ctheta), H_V / (2 CV) (J1);
+    H_Z / (Cz_j/(Z + zeta)² + 2|Z|), (c - Z²) / (2|Z| + 1). Trivial rows unscaled.
+    """
+    n = w.shape[0] - 1
+    k_obs = obs.shape[0]
+    m = 2 + 2 * k_obs
+    cost = int(prm[_P_COST])
+    fv = np.empty(3)
+    hx = np.empty(3)
+    czw = np.empty(k_obs)
+    for j in range(k_obs):
+        czw[j] = prm[_P_CZ] * slot_weight(obs[j], tshift)
+    scale = prm[_P_SCALE] > 0.5
+    if cost == 3:
+        inv0, inv1 = 0.5 / prm[_P_CSD], 0.5 / prm[_P_CTHD]
+    elif cost == 2:
+        inv0, inv1 = -1.0, 0.5 / prm[_P_CSD]
+    else:
+        inv0, inv1 = 0.5 / prm[_P_CTH], 0.5 / prm[_P_CV]
+    xs[0, 0] = x0[0]
+    xs[0, 1] = x0[1]
+    xs[0, 2] = x0[2]
+    for i in range(n):
+        b = i * m
+        dt = horizon * (w[i + 1] - w[i])
+        geo = ps[i, 3:12]
+        stage_geometry(xs[i], uvec[b:b + m], prm, meta, coef, geo)
+        xs[i + 1, 0] = xs[i, 0] + geo[6] * dt
+        xs[i + 1, 1] = xs[i, 1] + geo[7] * dt
+        if cost == 3:
+            xs[i + 1, 2] = xs[i, 2] + uvec[b + 1] * dt
+        else:
+            xs[i, 2] = uvec[b]
+            xs[i + 1, 2] = uvec[b]
+    terminal_eval(xs[n], prm, meta, coef, hx)
+    ps[n, 0] = hx[0]
+    ps[n, 1] = hx[1]
+    ps[n, 2] = hx[2]
+    for i in range(n - 1, -1, -1):
+        b = i * m
+        dt = horizon * (w[i + 1] - w[i])
+        tau = tshift + horizon * w[i]
+        stage_eval_geo(xs[i], uvec[b:b + m], ps[i + 1], tau, i > 0, prm, obs, czw,
+                       ps[i, 3:12], fv, hx, f_out[b:b + m])
+        ps[i, 0] = ps[i + 1, 0] + hx[0] * dt
+        ps[i, 1] = ps[i + 1, 1] + hx[1] * dt
+        ps[i, 2] = ps[i + 1, 2] + hx[2] * dt
+    if scale:
+        zeta = prm[_P_ZETA]
+        for i in range(n):
+            b = i * m
+            if inv0 > 0.0:
+                f_out[b] *= inv0
+            else:
+                v = uvec[b + 1]
+                f_out[b] /= 2.0 * prm[_P_CYD] * v * v + 0.02 * prm[_P_CSD] + 1e-6
+            f_out[b + 1] *= inv1
+            if i == 0:
+                continue
+            for j in range(k_obs):
+                if obs[j, 6] > 0.5:
+                    z = uvec[b + 2 + j]
+                    zz = max(z + zeta, 1e-9)
+                    az = 2.0 * abs(z)
+                    f_out[b + 2 + j] /= czw[j] / (zz * zz) + az + 1e-3
+                    f_out[b + 2 + k_obs + j] /= az + 1.0
+
+
+@numba.njit(cache=True)
+def ocp_objective(uvec: np.ndarray, x0: np.ndarray, horizon: float, tshift: float,
+                  prm: np.ndarray, obs: np.ndarray, w: np.ndarray, meta: np.ndarray,
+                  coef: np.ndarray, with_multipliers: bool = False) -> float:
+    """Discrete objective sum dtau_i L(x_i, u_i) + m(x_N) including the barrier (tests).
+
+    With ``with_multipliers`` the constraint terms sum dtau_i mu_i (c_i - Z_i²) are
+    added: this is the reduced Lagrangian, whose gradient with respect to stage i's
+    unknowns is dtau_i F_i (on the non-trivial rows).
+    """
+    n = w.shape[0] - 1
+    k_obs = obs.shape[0]
+    m = 2 + 2 * k_obs
+    cost = int(prm[_P_COST])
+    x = x0.copy()
+    fv = np.empty(3)
+    hx = np.empty(3)
+    hu = np.empty(m)
+    zero3 = np.zeros(3)
+    total = 0.0
+    for i in range(n):
+        b = i * m
+        dt = horizon * (w[i + 1] - w[i])
+        u = uvec[b:b + m].copy()
+        if not with_multipliers:
+            for j in range(k_obs):
+                u[2 + k_obs + j] = 0.0  # multipliers do not enter the objective
+        lval = stage_eval(x, u, zero3, tshift + horizon * w[i], i > 0, prm, obs, meta, coef,
+                          fv, hx, hu)
+        total += lval * dt
+        x[0] += fv[0] * dt
+        x[1] += fv[1] * dt
+        if cost == 3:
+            x[2] += fv[2] * dt
+    total += terminal_eval(x, prm, meta, coef, hx)
+    return total
+
+
+@numba.njit(cache=True)
+def stage_init(x0: np.ndarray, tshift: float, prm: np.ndarray, obs: np.ndarray,
+               meta: np.ndarray, coef: np.ndarray, n: int, uvec: np.ndarray) -> None:
+    """Exact solution of F = 0 for a zero-length horizon (growing-horizon start).
+
+    With T = 0 every x_i = x0 and p_i = dm/dx(x0), so every stage solves the same
+    small system H_u(x0, u, p) = 0 (2 unknowns; Newton with a finite-difference
+    Jacobian from theta = gamma, V = Vt / V = Vt, omega = 0), Z_j = sqrt(max(c_j, 1e-2)),
+    mu_j from H_Zj = 0: mu_j = -Cz / (2 Z_j (Z_j + zeta)).
+    """
+    k_obs = obs.shape[0]
+    m = 2 + 2 * k_obs
+    cost = int(prm[_P_COST])
+    p = np.empty(3)
+    terminal_eval(x0, prm, meta, coef, p)
+    g, _k0, _dk0 = path_gamma(meta, coef, x0[0])
+    u = np.zeros(m)
+    vt = prm[_P_VT]
+    if cost == 3:
+        u[0] = vt
+    else:
+        u[0] = g
+        u[1] = vt
+    for j in range(k_obs):
+        u[2 + j] = 1.0
+    fv = np.empty(3)
+    hx = np.empty(3)
+    r0 = np.empty(m)
+    r1 = np.empty(m)
+    for _it in range(30):
+        stage_eval(x0, u, p, tshift, False, prm, obs, meta, coef, fv, hx, r0)
+        if abs(r0[0]) + abs(r0[1]) < 1e-13:
+            break
+        jac = np.empty((2, 2))
+        for col in range(2):
+            du = 1e-7 * max(1.0, abs(u[col]))
+            u[col] += du
+            stage_eval(x0, u, p, tshift, False, prm, obs, meta, coef, fv, hx, r1)
+            u[col] -= du
+            jac[0, col] = (r1[0] - r0[0]) / du
+            jac[1, col] = (r1[1] - r0[1]) / du
+        det = jac[0, 0] * jac[1, 1] - jac[0, 1] * jac[1, 0]
+        if abs(det) < 1e-14:
+            break
+        d0 = (jac[1, 1] * r0[0] - jac[0, 1] * r0[1]) / det
+        d1 = (-jac[1, 0] * r0[0] + jac[0, 0] * r0[1]) / det
+        u[0] -= d0
+        u[1] -= d1
+    cz = prm[_P_CZ]
+    zeta = prm[_P_ZETA]
+    for i in range(n):
+        b = i * m
+        uvec[b] = u[0]
+        uvec[b + 1] = u[1]
+        for j in range(k_obs):
+            if i > 0 and obs[j, 6] > 0.5:
+                c, _cs, _cy = constraint_eval(x0[0], x0[1], tshift, obs[j])
+                z = math.sqrt(max(c, 1e-2))
+                uvec[b + 2 + j] = z
+                uvec[b + 2 + k_obs + j] = (-cz * slot_weight(obs[j], tshift)
+                                           / (2.0 * z * (z + zeta)))
+            else:
+                uvec[b + 2 + j] = 1.0
+                uvec[b + 2 + k_obs + j] = 0.0
+
+
+@numba.njit(cache=True)
+def activate_slot(uvec: np.ndarray, xs: np.ndarray, horizon: float, tshift: float,
+                  w: np.ndarray, prm: np.ndarray, obs: np.ndarray, j: int) -> None:
+    """Initialise slot j's Z, mu along the current plan so that its own rows vanish."""
+    n = w.shape[0] - 1
+    k_obs = obs.shape[0]
+    m = 2 + 2 * k_obs
+    cz = prm[_P_CZ]
+    zeta = prm[_P_ZETA]
+    for i in range(n):
+        b = i * m
+        if i == 0:
+            uvec[b + 2 + j] = 1.0
+            uvec[b + 2 + k_obs + j] = 0.0
+            continue
+        c, _cs, _cy = constraint_eval(xs[i, 0], xs[i, 1], tshift + horizon * w[i], obs[j])
+        z = math.sqrt(max(c, 1e-2))
+        uvec[b + 2 + j] = z
+        uvec[b + 2 + k_obs + j] = -cz * slot_weight(obs[j], tshift) / (2.0 * z * (z + zeta))
+
+
+@numba.njit(cache=True)
+def deactivate_slot(uvec: np.ndarray, n: int, k_obs: int, j: int) -> None:
+    m = 2 + 2 * k_obs
+    for i in range(n):
+        uvec[i * m + 2 + j] = 1.0
+        uvec[i * m + 2 + k_obs + j] = 0.0
+
+
+class SpmmProblem:
+    """Python-side view of the discretised OCP for one path (tests, baselines, tools).
+
+    Holds the packed tables; ``residual(U, x0, ...)`` returns F (N m,) and the
+    states (N+1, 3). Not used in the real-time loop (which calls the kernels).
+    """
+
+    def __init__(self, path: FrenetPath, params: OuterParams) -> None:
+        self.path = path
+        self.params = params
+        self.meta, self.coef, _ = path.tables()
+        self.w = stage_fractions(params)
+
+    def residual(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray, target_speed: float,
+                 horizon: float | None = None, tshift: float = 0.0, scaled: bool = False,
+                 lateral_reference_m: float = 0.0,
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(F, states (N+1, 3), costates (N+1, 3)); F unscaled unless ``scaled``."""
+        n = self.params.n_stages
+        prm = pack_params(self.params, target_speed, lateral_reference_m)
+        prm[_P_SCALE] = 1.0 if scaled else 0.0
+        xs = np.empty((n + 1, 3))
+        ps = np.empty((n + 1, 12))
+        f = np.empty(self.params.n_unknowns)
+        ocp_residual(np.ascontiguousarray(uvec, dtype=np.float64),
+                     np.asarray(x0, dtype=np.float64), float(horizon or self.params.horizon_s),
+                     float(tshift), prm, obs, self.w, self.meta, self.coef, xs, ps, f)
+        return f, xs, ps[:, :3].copy()
+
+    def objective(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray, target_speed: float,
+                  horizon: float | None = None, tshift: float = 0.0,
+                  with_multipliers: bool = False, lateral_reference_m: float = 0.0) -> float:
+        return float(ocp_objective(np.ascontiguousarray(uvec, dtype=np.float64),
+                                   np.asarray(x0, dtype=np.float64),
+                                   float(horizon or self.params.horizon_s), float(tshift),
+                                   pack_params(self.params, target_speed, lateral_reference_m),
+                                   obs, self.w,
+                                   self.meta, self.coef, with_multipliers))
+
+    def initial_guess(self, x0: np.ndarray, obs: np.ndarray, target_speed: float,
+                      tshift: float = 0.0, lateral_reference_m: float = 0.0) -> np.ndarray:
+        u = np.empty(self.params.n_unknowns)
+        stage_init(np.asarray(x0, dtype=np.float64), float(tshift),
+                   pack_params(self.params, target_speed, lateral_reference_m), obs,
+                   self.meta, self.coef,
+                   self.params.n_stages, u)
+        return u
