@@ -25,9 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from controllers.sim.closed_loop import pass_reference, simulate
 from controllers.behaviour.ellipses import FrenetVehicle
 from controllers.protocol import Command, Observation, ScenarioContext
+from controllers.sim.closed_loop import pass_reference, simulate
 from controllers.two_loop.controller import TwoLoopController, TwoLoopParams
 
 

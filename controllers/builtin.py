@@ -5,8 +5,8 @@ from __future__ import annotations
 import importlib.util
 
 from controllers.baselines.lane_keep import make_lane_keep
-from controllers.registry import register
 from controllers.baselines.sumo_driver import make_sumo_driver
+from controllers.registry import register
 from controllers.two_loop.controller import make_two_loop
 
 register("lane_keep", make_lane_keep)

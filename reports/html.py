@@ -22,11 +22,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from reports.tables import STATUSES, RunEval, summary_frame
-from reports.metrics.geometry import box_corners
 from reports.metrics.comfort import comfort_series
 from reports.metrics.criteria import Criteria, parse_failure
 from reports.metrics.evaluate import REQUIRED_METRICS
+from reports.metrics.geometry import box_corners
 from reports.metrics.safety import (
     collision_steps,
     ego_boxes,
@@ -38,6 +37,7 @@ from reports.metrics.safety import (
 )
 from reports.metrics.timing import loop_times_s
 from reports.metrics.tracking import column
+from reports.tables import STATUSES, RunEval, summary_frame
 
 MAX_POINTS = 400
 STATUS_COLOURS = {"pass": "#15803d", "fail": "#dc2626", "error": "#7c3aed",

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy.optimize import root
 
-from controllers.two_loop.outer.gmres import cgmres_step
-from controllers.two_loop.outer.cgmres import CgmresOuter, cgmres_updates
 from controllers.path.frenet import FrenetPath
 from controllers.protocol import Obstacles
+from controllers.two_loop.outer.cgmres import CgmresOuter, cgmres_updates
+from controllers.two_loop.outer.gmres import cgmres_step
 from controllers.two_loop.outer.ocp import OuterParams, SpmmProblem, obstacle_table, pack_params
 
 STRAIGHT = np.array([[0.0, 0.0], [1000.0, 0.0]])

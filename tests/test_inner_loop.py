@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from controllers.path.frenet import FrenetPath
-from controllers.two_loop.preview import convert, inner_step, plan_reference
 from controllers.plant.vehicle_model import VehicleParams, stvm_rk4
+from controllers.two_loop.preview import convert, inner_step, plan_reference
 
 VP = VehicleParams()
 

@@ -15,6 +15,7 @@ import pytest
 
 pytest.importorskip("casadi")
 
+from controllers.protocol import ConfigError, Obstacles  # noqa: E402
 from controllers.two_loop.outer.ipopt import (  # noqa: E402
     IpoptOuter,
     StraightPath,
@@ -22,7 +23,6 @@ from controllers.two_loop.outer.ipopt import (  # noqa: E402
     benchmark_outer,
     ellipse_values,
 )
-from controllers.protocol import ConfigError, Obstacles  # noqa: E402
 from controllers.two_loop.outer.ocp import OuterParams, SpmmProblem, obstacle_table  # noqa: E402
 
 VT = 25.0
@@ -357,8 +357,8 @@ def test_closed_loop_passes_a_stalled_car() -> None:
     pass side), the boxes never overlap, Ipopt never fails.
     """
     from controllers.baselines.ipopt_nmpc import make_ipopt_nmpc
-    from controllers.sim.closed_loop import simulate
     from controllers.behaviour.ellipses import FrenetVehicle
+    from controllers.sim.closed_loop import simulate
 
     ctrl = make_ipopt_nmpc({})
     trace = simulate(ctrl, np.array([[0.0, 0.0], [600.0, 0.0]]),

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import synthetic_runs as sr
 
-from reports.metrics.geometry import box_corners
 from reports.metrics import REQUIRED_METRICS, evaluate_run
 from reports.metrics.comfort import comfort_metrics, sg_window
+from reports.metrics.geometry import box_corners
 from reports.metrics.safety import (
     OFFROAD_TOLERANCE_M,
     min_ttc_rear_s,

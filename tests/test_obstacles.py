@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from controllers.path.frenet import FrenetPath
 from controllers.behaviour.ellipses import ellipse_semi_axes
+from controllers.path.frenet import FrenetPath
 from controllers.protocol import ObstaclePolicy
 from reports.metrics.geometry import box_corners, box_distance
 from suite.obstacles import (

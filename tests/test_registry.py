@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from controllers import registry
-from controllers.protocol import ConfigError, Controller, Observation, ScenarioContext
 from controllers.plant.vehicle_model import VehicleParams
+from controllers.protocol import ConfigError, Controller, Observation, ScenarioContext
 
 
 def test_builtins_are_registered() -> None:

@@ -14,8 +14,8 @@ import synthetic_runs as sr
 
 from reports import write_reports
 from reports.html import MAX_POINTS, decimate
-from reports.tables import LEAD_COLUMNS, scenario_family
 from reports.metrics import REQUIRED_METRICS
+from reports.tables import LEAD_COLUMNS, scenario_family
 
 
 @pytest.fixture(scope="module")

@@ -10,19 +10,19 @@ import time
 import numpy as np
 import pytest
 
+from controllers.behaviour.ellipses import FrenetVehicle, build_obstacles, ellipse_semi_axes
+from controllers.path.frenet import FrenetPath
+from controllers.plant.vehicle_model import VehicleParams
+from controllers.protocol import ConfigError, Controller, Observation, ObstaclePolicy, Obstacles
 from controllers.sim.closed_loop import (
     pass_reference,
     plan_tracking_error,
     simulate,
     steering_chatter,
 )
-from controllers.path.frenet import FrenetPath
-from controllers.behaviour.ellipses import FrenetVehicle, build_obstacles, ellipse_semi_axes
-from controllers.two_loop.outer.protocol import OuterPlan
-from controllers.protocol import ConfigError, Controller, Observation, ObstaclePolicy, Obstacles
-from controllers.two_loop.outer.ocp import OuterParams
 from controllers.two_loop.controller import TwoLoopController, TwoLoopParams, make_two_loop
-from controllers.plant.vehicle_model import VehicleParams
+from controllers.two_loop.outer.ocp import OuterParams
+from controllers.two_loop.outer.protocol import OuterPlan
 
 DT = 0.02
 STRAIGHT = np.array([[0.0, 0.0], [1500.0, 0.0]])

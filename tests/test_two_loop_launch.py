@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from scipy.signal import savgol_filter
 
-from controllers.sim.closed_loop import FOLLOW_SIDE, simulate
 from controllers.behaviour.ellipses import FrenetVehicle
-from controllers.protocol import ConfigError
-from controllers.two_loop.controller import TwoLoopParams, make_two_loop
 from controllers.plant.vehicle_model import VehicleParams
+from controllers.protocol import ConfigError
+from controllers.sim.closed_loop import FOLLOW_SIDE, simulate
+from controllers.two_loop.controller import TwoLoopParams, make_two_loop
 from suite.obstacles import GapPolicy, follow_speed_mps
 
 DT = 0.02

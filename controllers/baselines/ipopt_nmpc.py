@@ -29,12 +29,12 @@ import importlib.util
 from collections.abc import Mapping
 from typing import Any
 
-from controllers.two_loop.outer.ipopt import FORMULATIONS
 from controllers.path.frenet import FrenetPath
 from controllers.protocol import ConfigError
 from controllers.registry import check_options
-from controllers.two_loop.outer.ocp import OuterParams
 from controllers.two_loop.controller import _OPTION_TYPES, TwoLoopController, TwoLoopParams
+from controllers.two_loop.outer.ipopt import FORMULATIONS
+from controllers.two_loop.outer.ocp import OuterParams
 
 if importlib.util.find_spec("casadi") is None:  # builtin.py registers us only with CasADi
     raise ImportError("ipopt_nmpc needs CasADi (pip install 'hwyeval[baselines]')")

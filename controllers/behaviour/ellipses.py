@@ -35,8 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.protocol import ObstaclePolicy, Obstacles
 from controllers.plant.vehicle_model import VehicleParams
+from controllers.protocol import ObstaclePolicy, Obstacles
 
 
 @dataclass(frozen=True)

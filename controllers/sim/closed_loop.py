@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from controllers.path.frenet import FrenetPath
 from controllers.behaviour.ellipses import FrenetVehicle, build_obstacles, ellipse_semi_axes
-from controllers.protocol import Controller, Observation, ObstaclePolicy, ScenarioContext
+from controllers.path.frenet import FrenetPath
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
+from controllers.protocol import Controller, Observation, ObstaclePolicy, ScenarioContext
 
 VehiclesFn = Callable[[float], Sequence[FrenetVehicle]]
 # (t_s, s_m, y_m) of the ego CG -> (pass_side, lateral_reference_m), as the runner decides.

@@ -133,8 +133,7 @@ from typing import Any
 import numpy as np
 
 from controllers.path.frenet import FrenetPath, _points_many, path_gamma, path_project_local
-from controllers.two_loop.preview import inner_step
-from controllers.two_loop.outer.protocol import OuterPlan, OuterSolver
+from controllers.plant.vehicle_model import VehicleParams
 from controllers.protocol import (
     Command,
     ConfigError,
@@ -145,7 +144,8 @@ from controllers.protocol import (
 )
 from controllers.registry import check_options
 from controllers.two_loop.outer.ocp import COSTS, OuterParams, TargetSpeedRamp
-from controllers.plant.vehicle_model import VehicleParams
+from controllers.two_loop.outer.protocol import OuterPlan, OuterSolver
+from controllers.two_loop.preview import inner_step
 
 OuterFactory = Callable[[FrenetPath, OuterParams], OuterSolver]
 OUTERS = ("cgmres", "ipopt")

@@ -14,8 +14,8 @@ import numpy as np
 import reports.metrics  # noqa: F401 - scipy.signal and friends
 import suite.rerun.log  # noqa: F401 - rerun
 from controllers import registry
-from controllers.protocol import Observation, Obstacles, ScenarioContext
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
+from controllers.protocol import Observation, Obstacles, ScenarioContext
 
 
 def warm_up(steps: int = 3) -> None:

@@ -84,8 +84,8 @@ import pandas as pd
 import rerun as rr
 
 from reports.metrics.geometry import box_corners
-from suite.rerun.blueprint import VIEW_FRAME_SCALE, default_blueprint, north_up_transform
 from reports.run_record import RRD, RunRecord, load_run
+from suite.rerun.blueprint import VIEW_FRAME_SCALE, default_blueprint, north_up_transform
 
 __all__ = ["write_rrd", "recording_id_for", "lane_edges", "ENTITY_PATHS"]
 

@@ -30,8 +30,8 @@ import pandas as pd
 
 from controllers import registry
 from controllers.path.frenet import FrenetPath
-from controllers.protocol import Controller, Observation, ScenarioContext
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
+from controllers.protocol import Controller, Observation, ScenarioContext
 from reports import run_record as rr
 from reports.metrics.geometry import box_corners, box_distance, boxes_overlap, ego_box_centre
 from suite.obstacles import (

@@ -42,10 +42,9 @@ import time
 import numba
 import numpy as np
 
-from controllers.two_loop.outer.gmres import arnoldi_mgs, back_substitute, combine, givens_column
 from controllers.path.frenet import FrenetPath
-from controllers.two_loop.outer.protocol import OuterPlan
 from controllers.protocol import Obstacles
+from controllers.two_loop.outer.gmres import arnoldi_mgs, back_substitute, combine, givens_column
 from controllers.two_loop.outer.ocp import (
     _FM,
     _P_CY,
@@ -63,6 +62,7 @@ from controllers.two_loop.outer.ocp import (
     stage_fractions,
     stage_init,
 )
+from controllers.two_loop.outer.protocol import OuterPlan
 
 
 @numba.njit(cache=True)

@@ -104,9 +104,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from controllers.two_loop.outer.protocol import OuterPlan
 from controllers.protocol import ConfigError, Obstacles
 from controllers.two_loop.outer.ocp import TargetSpeedRamp
+from controllers.two_loop.outer.protocol import OuterPlan
 
 FORMULATIONS = ("barrier", "hard")
 
@@ -1005,8 +1005,8 @@ def compare_with_cgmres(params: Any = None, *, repeats: int = 1,
     ``repeats`` timed runs whose samples are pooled. Returns per-solver summaries and
     the Ipopt/C-GMRES ratios of p50, p99 and variance.
     """
-    from controllers.two_loop.outer.cgmres import CgmresOuter
     from controllers.path.frenet import FrenetPath
+    from controllers.two_loop.outer.cgmres import CgmresOuter
     from controllers.two_loop.outer.ocp import OuterParams
 
     if params is None:
