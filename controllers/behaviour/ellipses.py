@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from controllers.plant.vehicle_model import VehicleParams
-from controllers.protocol import ObstaclePolicy, Obstacles
+from controllers.behaviour.types import ObstaclePolicy, Obstacles
 
 
 @dataclass(frozen=True)

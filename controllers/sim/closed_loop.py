@@ -19,6 +19,7 @@ ellipse), ellipse_c_margin (the same with the policy's margins, no offset).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -180,8 +181,8 @@ def simulate(controller: Controller, path_xy: np.ndarray,
         if plan is not None:
             rec["plans"].append(np.asarray(plan.states, dtype=np.float64).copy())
             rec["plan_tau_s"].append(np.asarray(plan.stage_times_s, dtype=np.float64).copy())
-        for key, val in cmd.diagnostics.items():
-            diags.setdefault(key, []).append(float(val))
+        for f in dataclasses.fields(cmd.diagnostics):
+            diags.setdefault(f.name, []).append(float(getattr(cmd.diagnostics, f.name)))
     out: dict[str, Any] = {}
     for key, vals in rec.items():
         if key in ("ellipse_c", "ellipse_c_margin"):

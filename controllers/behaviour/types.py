@@ -1,0 +1,212 @@
+"""Neutral array types of the behaviour layer: what the world hands over, what is decided.
+
+The behaviour layer sits between the world (SUMO, or the plant-only simulator) and the
+controller: other vehicles and lane context in, obstacle ellipses, a pass side, a
+lateral reference and a speed target out. These types carry no SUMO object; the SUMO
+adapter (``suite.world``) and :mod:`controllers.sim.closed_loop` both produce them.
+
+Frames: world = network coordinates [m], headings CCW from +X [rad]; Frenet = arc
+length ``s`` along the controller's reference path [m] and lateral offset ``y``, left
+positive [m].
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+SIDE_NONE = 0
+SIDE_LEFT = 1
+SIDE_RIGHT = -1
+SIDE_FOLLOW = 2
+
+
+@dataclass(frozen=True)
+class Traffic:
+    """Other vehicles at one instant, every array of shape (n,), world frame.
+
+    x_m, y_m: box centre [m]; heading_rad; speed_mps along the heading; length_m,
+    width_m: box size [m]; lane_index: lane index on its road (0 = rightmost, -1
+    unknown); road_id: the road (edge) it is on ('' unknown); stalled: a stalled
+    vehicle of the scenario (never moves).
+    """
+
+    ids: tuple[str, ...]
+    x_m: FloatArray
+    y_m: FloatArray
+    heading_rad: FloatArray
+    speed_mps: FloatArray
+    length_m: FloatArray
+    width_m: FloatArray
+    lane_index: IntArray
+    road_id: tuple[str, ...]
+    stalled: BoolArray
+
+    def __post_init__(self) -> None:
+        n = len(self.ids)
+        for name in ("x_m", "y_m", "heading_rad", "speed_mps", "length_m", "width_m",
+                     "lane_index", "stalled"):
+            if np.shape(getattr(self, name)) != (n,):
+                raise ValueError(f"Traffic.{name} must have shape ({n},), "
+                                 f"got {np.shape(getattr(self, name))}")
+        if len(self.road_id) != n:
+            raise ValueError(f"Traffic.road_id must have {n} entries, got {len(self.road_id)}")
+
+    @property
+    def count(self) -> int:
+        return len(self.ids)
+
+    @staticmethod
+    def empty() -> Traffic:
+        z = np.zeros(0)
+        return Traffic((), z, z, z, z, z, z, np.zeros(0, dtype=np.int64), (),
+                       np.zeros(0, dtype=bool))
+
+    def take(self, index: npt.NDArray[np.intp] | BoolArray) -> Traffic:
+        """The vehicles at ``index`` (integer positions or a boolean mask)."""
+        idx = np.flatnonzero(index) if np.asarray(index).dtype == bool else np.asarray(index)
+        return Traffic(tuple(self.ids[i] for i in idx), self.x_m[idx], self.y_m[idx],
+                       self.heading_rad[idx], self.speed_mps[idx], self.length_m[idx],
+                       self.width_m[idx], self.lane_index[idx],
+                       tuple(self.road_id[i] for i in idx), self.stalled[idx])
+
+
+@dataclass(frozen=True)
+class LaneSlot:
+    """A lane of the road under a point of the route: index (0 = rightmost of its road),
+    width [m], passenger cars allowed, hard shoulder."""
+
+    index: int
+    width_m: float
+    allows_passenger: bool
+    is_shoulder: bool
+
+
+@dataclass(frozen=True)
+class LaneContext:
+    """The lanes at the ego's position, by lane index, and the index of the lane the
+    reference path follows there (``reference_index``)."""
+
+    slots: Mapping[int, LaneSlot]
+    reference_index: int
+
+    def slot(self, index: int) -> LaneSlot | None:
+        return self.slots.get(index)
+
+    @property
+    def reference_width_m(self) -> float:
+        ref = self.slots.get(self.reference_index)
+        return ref.width_m if ref is not None else math.nan
+
+
+@dataclass(frozen=True)
+class EgoFrenet:
+    """The ego as the behaviour sees it: CG in the world [m] and on the reference path
+    (s_m, y_m) [m], speed [m/s]."""
+
+    x_m: float
+    y_m: float
+    s_m: float
+    lat_m: float
+    speed_mps: float
+
+
+@dataclass(frozen=True)
+class Obstacles:
+    """Obstacle ellipses as the controller sees them, all arrays of shape (K,).
+
+    Reference-path Frenet frame: centre ``(s_m, y_m)`` now (the offset OS already
+    applied, away from the pass side), velocity ``(speed_s_mps, speed_y_mps)`` for the
+    constant-velocity prediction s_j(tau) = s_m + speed_s_mps tau, semi-axes
+    ``semi_a_m`` (along the path) and ``semi_b_m`` (across), ego allowance and
+    margins included.
+    """
+
+    s_m: FloatArray
+    y_m: FloatArray
+    speed_s_mps: FloatArray
+    speed_y_mps: FloatArray
+    semi_a_m: FloatArray
+    semi_b_m: FloatArray
+
+    @staticmethod
+    def empty() -> Obstacles:
+        z = np.zeros(0)
+        return Obstacles(z, z, z, z, z, z)
+
+    @property
+    def count(self) -> int:
+        return int(self.s_m.shape[0])
+
+
+@dataclass(frozen=True)
+class ObstaclePolicy:
+    """How other vehicles become the controller's ellipses (docs/method.md §4).
+
+    Semi-axes: the ellipse contains the box-sum rectangle of the obstacle and the ego
+    (the point-mass planner is a point at the ego CG) plus margins, see
+    :func:`controllers.behaviour.ellipses.ellipse_semi_axes`. Vehicles whose box centre
+    is within ``detection_distance_m`` [m] of the ego CG and at most ``rear_range_m``
+    [m] behind it enter the problem, nearest first, at most ``max_obstacles``.
+    ``offset_m`` [m] shifts the ellipse away from the pass side; ``margin_long_m``,
+    ``margin_lat_m`` [m] are the safety margins along and across the path.
+    ``moving_obstacles`` feeds traffic with its speed (constant-velocity prediction);
+    without it only stalled vehicles become obstacles.
+    """
+
+    detection_distance_m: float = 100.0
+    rear_range_m: float = 10.0
+    margin_long_m: float = 2.0
+    margin_lat_m: float = 0.4
+    offset_m: float = 0.3
+    max_obstacles: int = 3
+    moving_obstacles: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("detection_distance_m", "rear_range_m", "margin_long_m", "margin_lat_m",
+                     "offset_m"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and not isinstance(value, bool)
+                    and math.isfinite(value) and value >= 0):
+                raise ValueError(
+                    f"ObstaclePolicy.{name} must be a finite number >= 0, got {value!r}")
+        if isinstance(self.max_obstacles, bool) or not (
+                isinstance(self.max_obstacles, int) and 0 <= self.max_obstacles <= 16):
+            raise ValueError(
+                f"ObstaclePolicy.max_obstacles must be an integer in [0, 16], "
+                f"got {self.max_obstacles!r}")
+        if not isinstance(self.moving_obstacles, bool):
+            raise ValueError(f"ObstaclePolicy.moving_obstacles must be true or false, "
+                             f"got {self.moving_obstacles!r}")
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The behaviour layer's output for one step.
+
+    obstacles: the controller's ellipses; obstacle_ids: the vehicle behind each;
+    side: SIDE_LEFT / SIDE_RIGHT (pass), SIDE_FOLLOW (no side free: follow), SIDE_NONE;
+    reason: why (text for logs); target_speed_mps: the speed set-point (lowered while
+    following); lateral_reference_m: where the plan should settle across the reference
+    path [m, left +] (the neighbour lane's centre while passing, 0 otherwise).
+    """
+
+    obstacles: Obstacles = field(default_factory=Obstacles.empty)
+    side: int = SIDE_NONE
+    reason: str = ""
+    target_speed_mps: float = math.nan
+    lateral_reference_m: float = 0.0
+    obstacle_ids: tuple[str, ...] = ()
+
+    @property
+    def pass_side(self) -> int:
+        """+1 / -1 when passing on that side, else 0 (the controller's view)."""
+        return self.side if self.side in (SIDE_LEFT, SIDE_RIGHT) else 0

@@ -1,0 +1,1 @@
+"""Catalog options -> nested parameter dataclasses (dotted keys)."""

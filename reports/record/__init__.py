@@ -1,0 +1,52 @@
+"""The run-record schema: what a run directory holds, as typed dataclasses.
+
+Written by the runner (``suite``), read by the metrics, the Rerun log and the reports.
+This package imports nothing of hwyeval.
+"""
+
+from reports.record.codec import RecordError
+from reports.record.columns import (
+    ControllerColumns,
+    DecisionColumns,
+    EgoColumns,
+    NeighbourColumns,
+    SafetyColumns,
+    SeriesColumns,
+    TimingColumns,
+    Trace,
+)
+from reports.record.meta import (
+    EgoBox,
+    RunInfo,
+    RunOutcome,
+    SsmSummary,
+    StalledVehicle,
+    SumoCollision,
+)
+from reports.record.road import LaneRecord, RoadRecord
+from reports.record.run import (
+    CONTROLLER_ARRAYS,
+    NEIGHBOURS,
+    ROAD_JSON,
+    RRD,
+    RUN_JSON,
+    SERIES,
+    TRACE,
+    TRACEBACK,
+    ControllerArrays,
+    RunRecord,
+    iter_run_dirs,
+    load_run,
+    write_run,
+    write_run_json,
+)
+from reports.record.verdict import Failure, MetricValue, Verdict
+
+__all__ = [
+    "CONTROLLER_ARRAYS", "NEIGHBOURS", "ROAD_JSON", "RRD", "RUN_JSON", "SERIES", "TRACE",
+    "TRACEBACK", "ControllerArrays", "ControllerColumns", "DecisionColumns", "EgoBox",
+    "EgoColumns", "Failure", "LaneRecord", "MetricValue", "NeighbourColumns", "RecordError",
+    "RoadRecord", "RunInfo", "RunOutcome", "RunRecord", "SafetyColumns", "SeriesColumns",
+    "SsmSummary", "StalledVehicle", "SumoCollision", "TimingColumns", "Trace", "Verdict",
+    "iter_run_dirs", "load_run", "write_run", "write_run_json",
+]

@@ -1,0 +1,169 @@
+"""Typed JSON for the run record: frozen dataclasses to plain JSON and back, checked.
+
+:func:`to_plain` turns a dataclass (nested dataclasses, tuples, dicts, numpy scalars and
+arrays, paths) into JSON-able values. :func:`from_plain` rebuilds a dataclass from
+parsed JSON using its type hints and raises :class:`RecordError` naming the file, the
+dotted key, what was expected and what was found: a malformed ``run.json`` is
+reported, never half-read.
+
+Supported field types: ``float`` (ints accepted; NaN/±inf as JSON's NaN/Infinity),
+``int``, ``bool``, ``str``, ``X | None``, ``tuple[T, ...]``, ``dict[str, Any]``,
+``Any`` and nested dataclasses.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import types
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+
+T = TypeVar("T")
+
+
+class RecordError(ValueError):
+    """A run record is malformed: ``path`` (file), ``key`` (dotted), ``expected``, ``got``."""
+
+    def __init__(self, path: str | Path, key: str, expected: str, got: Any = None) -> None:
+        self.path = str(path)
+        self.key = key
+        self.expected = expected
+        self.got = got
+        shown = repr(got)
+        if len(shown) > 120:
+            shown = shown[:117] + "..."
+        super().__init__(f"{path}: {key or '<root>'}: expected {expected}, got {shown}")
+
+
+def to_plain(value: Any) -> Any:
+    """JSON-able copy of ``value`` (dataclasses become dicts, tuples lists)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: to_plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, Mapping):
+        return {str(k): to_plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [to_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def _type_name(tp: Any) -> str:
+    if tp is float:
+        return "a number"
+    if tp is int:
+        return "an integer"
+    if tp is bool:
+        return "true or false"
+    if tp is str:
+        return "a string"
+    return getattr(tp, "__name__", str(tp))
+
+
+def _decode(tp: Any, value: Any, key: str, path: str) -> Any:
+    origin = typing.get_origin(tp)
+    if tp is Any:
+        return value
+    if origin in (typing.Union, types.UnionType):
+        args = typing.get_args(tp)
+        if value is None and type(None) in args:
+            return None
+        errors = []
+        for arg in args:
+            if arg is type(None):
+                continue
+            try:
+                return _decode(arg, value, key, path)
+            except RecordError as exc:
+                errors.append(exc.expected)
+        raise RecordError(path, key, " or ".join(errors) + (" or null" if type(None) in args
+                                                            else ""), value)
+    if dataclasses.is_dataclass(tp):
+        return decode_dataclass(tp, value, path, key)
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if not isinstance(value, list | tuple):
+            raise RecordError(path, key, "a list", value)
+        item_tp = args[0] if args else Any
+        return tuple(_decode(item_tp, v, f"{key}.{i}", path) for i, v in enumerate(value))
+    if origin is dict or tp is dict:
+        if not isinstance(value, Mapping):
+            raise RecordError(path, key, "a table (JSON object)", value)
+        args = typing.get_args(tp)
+        val_tp = args[1] if len(args) == 2 else Any
+        return {str(k): _decode(val_tp, v, f"{key}.{k}", path) for k, v in value.items()}
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise RecordError(path, key, "a number", value)
+        return float(value)
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise RecordError(path, key, "an integer", value)
+        return int(value)
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise RecordError(path, key, "true or false", value)
+        return value
+    if tp is str:
+        if not isinstance(value, str):
+            raise RecordError(path, key, "a string", value)
+        return value
+    raise TypeError(f"codec: unsupported field type {tp!r} at {key}")  # pragma: no cover
+
+
+def decode_dataclass(cls: type[T], data: Any, path: str | Path, key: str = "") -> T:
+    """Build ``cls`` from parsed JSON ``data``; missing fields with defaults get them."""
+    path = str(path)
+    if not isinstance(data, Mapping):
+        raise RecordError(path, key, f"a table of {cls.__name__} fields", data)
+    hints = typing.get_type_hints(cls)
+    kwargs: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+        sub = f"{key}.{f.name}" if key else f.name
+        if f.name not in data:
+            if (f.default is dataclasses.MISSING
+                    and f.default_factory is dataclasses.MISSING):
+                raise RecordError(path, sub, f"this required key ({_type_name(hints[f.name])})",
+                                  "<missing>")
+            continue
+        kwargs[f.name] = _decode(hints[f.name], data[f.name], sub, path)
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        raise RecordError(path, key, f"valid {cls.__name__} fields ({exc})", data) from exc
+
+
+def write_json_atomic(path: Path, data: Any) -> None:
+    """Write ``data`` as JSON to ``path`` atomically (a reader never sees half a file)."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(to_plain(data), indent=1, allow_nan=True))
+    tmp.replace(path)
+
+
+def read_json(path: Path) -> Any:
+    """Parsed JSON of ``path``; RecordError if unreadable or not JSON."""
+    try:
+        return json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise RecordError(path, "", "a readable JSON file", f"{type(exc).__name__}: {exc}") \
+            from exc
+
+
+def finite_or_nan(value: Any) -> float:
+    """float(value), NaN where it is not a number."""
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        return math.nan
+    return out

@@ -1,0 +1,108 @@
+"""``run.json``: what was run (:class:`RunInfo`) and how it went (:class:`RunOutcome`).
+
+Both are frozen dataclasses written once, at the end of a run (or by the executor for a
+run that never finished); :mod:`reports.record.codec` reads them back with every field
+checked. Units are in the field names.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+STATUSES = ("pass", "fail", "error", "timeout")
+# How a run ended before metrics judged it: the loop finished, or it did not.
+END_OK = "ok"
+
+
+@dataclass(frozen=True)
+class EgoBox:
+    """The ego's body box relative to its CG [m]."""
+
+    length_m: float
+    width_m: float
+    cg_to_front_bumper_m: float
+    cg_to_box_centre_m: float
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """The run's identity and set-up, known before the first step."""
+
+    scenario: str
+    family: str
+    controller: str
+    catalog: str
+    catalog_name: str
+    seed: int
+    net: str
+    net_name: str
+    duration_s: float
+    step_s: float
+    target_speed_mps: float
+    allow_shoulder: bool
+    ego: EgoBox
+    controller_options: dict[str, Any] = field(default_factory=dict)
+    controller_params: dict[str, Any] = field(default_factory=dict)
+    criteria: dict[str, Any] = field(default_factory=dict)
+    scenario_spec: dict[str, Any] = field(default_factory=dict)
+    record_radius_m: float = 150.0
+    hwyeval_version: str = ""
+
+
+@dataclass(frozen=True)
+class StalledVehicle:
+    """A stalled car of the scenario as SUMO placed it (box centre, heading)."""
+
+    id: str
+    x_m: float
+    y_m: float
+    heading_rad: float
+    length_m: float
+    width_m: float
+    lane_index: int
+
+
+@dataclass(frozen=True)
+class SumoCollision:
+    """A collision SUMO reported with the ego as collider or victim."""
+
+    t_s: float
+    collider: str
+    victim: str
+    type: str
+
+
+@dataclass(frozen=True)
+class SsmSummary:
+    """SUMO's SSM device for the ego: conflicts seen, minimum TTC [s], maximum DRAC [m/s²]."""
+
+    conflicts: int = 0
+    min_ttc_s: float | None = None
+    max_drac_mps2: float | None = None
+    error: str | None = None
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """How the run went. ``end`` is 'ok' when the loop completed its stop rules, else
+    'error' or 'timeout'; the final status (pass/fail/error/timeout) is the verdict's."""
+
+    end: str = END_OK
+    error: str | None = None
+    stop_reason: str = ""
+    wall_s: float = math.nan
+    sim_time_s: float = 0.0
+    steps: int = 0
+    peak_rss_mb: float = math.nan
+    sumo_t_origin_s: float = 0.0
+    stalled: tuple[StalledVehicle, ...] = ()
+    sumo_collisions: tuple[SumoCollision, ...] = ()
+    ssm: SsmSummary = field(default_factory=SsmSummary)
+    log_s: float = math.nan
+    log_error: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.end not in (END_OK, "error", "timeout"):
+            raise ValueError(f"RunOutcome.end must be 'ok', 'error' or 'timeout', got {self.end!r}")

@@ -1,0 +1,210 @@
+"""A run directory: the one contract between the runner, the metrics, the Rerun log and
+the reports. Written once by the runner (:func:`write_run`), read by everyone else
+(:func:`load_run`).
+
+``DIR/<scenario>/`` holds:
+
+``run.json``
+    ``{"schema": 2, "info": RunInfo, "outcome": RunOutcome, "verdict": Verdict}``
+    (:mod:`reports.record.meta`, :mod:`reports.record.verdict`).
+``road.json``
+    :class:`reports.record.road.RoadRecord`.
+``trace.parquet``
+    one row per control step: ``step``, ``t_s``, the columns of every group of
+    :mod:`reports.record.columns` and the controller's own diagnostics (``Trace.extra``).
+``series.parquet``
+    :class:`reports.record.columns.SeriesColumns`, one row per trace row: the
+    signals the metrics are extremes of (smoothed accelerations, jerk, TTC, ...).
+``neighbours.parquet``
+    :class:`reports.record.columns.NeighbourColumns`, one row per (step, vehicle
+    within the recording radius).
+``controller_arrays.npz``
+    per-step arrays, NaN-padded, first axis = step: ``plan_xy_m`` (T, N+1, 2),
+    ``preview_xy_m`` (T, Np+1, 2), ``ellipses`` (T, K, 6) = [cx_m, cy_m,
+    heading_rad, semi_a_m, semi_b_m, active] in the world frame, and the scalar
+    ``detection_radius_m``.
+``traceback.txt``
+    the error text of a run that ended in 'error'.
+``run.rrd``
+    the Rerun recording.
+
+Headings are radians counter-clockwise from +X; neighbours' positions are box centres,
+the ego's is its CG (its box centre is ``cg_to_box_centre_m`` ahead).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from reports.record.codec import (
+    RecordError,
+    decode_dataclass,
+    read_json,
+    to_plain,
+    write_json_atomic,
+)
+from reports.record.columns import NeighbourColumns, SeriesColumns, Trace
+from reports.record.meta import RunInfo, RunOutcome
+from reports.record.road import RoadRecord
+from reports.record.verdict import Verdict
+
+SCHEMA_VERSION = 2
+RUN_JSON = "run.json"
+ROAD_JSON = "road.json"
+TRACE = "trace.parquet"
+SERIES = "series.parquet"
+NEIGHBOURS = "neighbours.parquet"
+CONTROLLER_ARRAYS = "controller_arrays.npz"
+TRACEBACK = "traceback.txt"
+RRD = "run.rrd"
+RUN_FILES = (RUN_JSON, ROAD_JSON, TRACE, SERIES, NEIGHBOURS, CONTROLLER_ARRAYS, TRACEBACK, RRD)
+
+
+@dataclass
+class ControllerArrays:
+    """Per-step arrays for logs (see the module docstring); empty arrays when absent."""
+
+    plan_xy_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
+    preview_xy_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
+    ellipses: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 6)))
+    detection_radius_m: float = 0.0
+
+
+@dataclass
+class RunRecord:
+    """One run, in memory. ``verdict``/``series`` are None until judged."""
+
+    info: RunInfo
+    outcome: RunOutcome
+    road: RoadRecord
+    trace: Trace
+    neighbours: NeighbourColumns
+    arrays: ControllerArrays
+    verdict: Verdict | None = None
+    series: SeriesColumns | None = None
+    run_dir: Path | None = None
+
+    @property
+    def name(self) -> str:
+        return self.info.scenario
+
+    @property
+    def status(self) -> str:
+        """pass | fail | error | timeout (error/timeout from the outcome win)."""
+        if self.outcome.end != "ok":
+            return self.outcome.end
+        return self.verdict.status if self.verdict is not None else "error"
+
+
+def write_run(record: RunRecord, run_dir: Path) -> None:
+    """Write every file of ``record`` into ``run_dir`` (run.json last, atomically)."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(run_dir / ROAD_JSON, record.road.as_plain())
+    record.trace.to_frame().to_parquet(run_dir / TRACE, index=False)
+    record.neighbours.to_frame().to_parquet(run_dir / NEIGHBOURS, index=False)
+    if record.series is not None:
+        record.series.to_frame().to_parquet(run_dir / SERIES, index=False)
+    arr = record.arrays
+    np.savez_compressed(run_dir / CONTROLLER_ARRAYS, plan_xy_m=arr.plan_xy_m,
+                        preview_xy_m=arr.preview_xy_m, ellipses=arr.ellipses,
+                        detection_radius_m=np.array(arr.detection_radius_m))
+    if record.outcome.error:
+        (run_dir / TRACEBACK).write_text(record.outcome.error)
+    write_run_json(record, run_dir)
+
+
+def write_run_json(record: RunRecord, run_dir: Path) -> None:
+    """(Re)write run.json from ``record.info``/``outcome``/``verdict`` (atomic)."""
+    doc: dict[str, Any] = {"schema": SCHEMA_VERSION, "info": to_plain(record.info),
+                           "outcome": to_plain(record.outcome),
+                           "verdict": to_plain(record.verdict) if record.verdict else None}
+    write_json_atomic(run_dir / RUN_JSON, doc)
+
+
+def read_run_json(run_dir: Path) -> tuple[RunInfo, RunOutcome, Verdict | None]:
+    """run.json of ``run_dir``, checked field by field (RecordError names the key)."""
+    path = run_dir / RUN_JSON
+    doc = read_json(path)
+    if not isinstance(doc, dict):
+        raise RecordError(path, "", "a JSON object with info, outcome, verdict", doc)
+    if doc.get("schema") != SCHEMA_VERSION:
+        raise RecordError(path, "schema", f"{SCHEMA_VERSION} (this hwyeval's record format)",
+                          doc.get("schema"))
+    info = decode_dataclass(RunInfo, doc.get("info"), path, "info")
+    outcome = decode_dataclass(RunOutcome, doc.get("outcome"), path, "outcome")
+    raw_verdict = doc.get("verdict")
+    verdict = None if raw_verdict is None else decode_dataclass(Verdict, raw_verdict, path,
+                                                                "verdict")
+    return info, outcome, verdict
+
+
+def _read_parquet(path: Path) -> pd.DataFrame | None:
+    if not path.is_file():
+        return None
+    try:
+        return pd.read_parquet(path)
+    except Exception as exc:  # pyarrow raises many kinds for a broken file
+        raise RecordError(path, "", "a readable parquet file", f"{type(exc).__name__}: {exc}") \
+            from exc
+
+
+def load_run(run_dir: str | Path, *, trace: bool = True, neighbours: bool = True,
+             arrays: bool = True, series: bool = True) -> RunRecord:
+    """Read a run directory. Parts not asked for (or absent) come back empty.
+
+    Raises FileNotFoundError without run.json and RecordError for a malformed file.
+    """
+    run_dir = Path(run_dir)
+    if not (run_dir / RUN_JSON).is_file():
+        raise FileNotFoundError(f"{run_dir / RUN_JSON}: no run.json, not a run directory")
+    info, outcome, verdict = read_run_json(run_dir)
+    road_path = run_dir / ROAD_JSON
+    road = RoadRecord.from_plain(read_json(road_path), road_path) if road_path.is_file() \
+        else RoadRecord()
+    frame = _read_parquet(run_dir / TRACE) if trace else None
+    tr = Trace.from_frame(frame) if frame is not None else Trace.empty()
+    nb_frame = _read_parquet(run_dir / NEIGHBOURS) if neighbours else None
+    nb = NeighbourColumns.from_frame(nb_frame) if nb_frame is not None \
+        else NeighbourColumns.allocate(0)
+    se_frame = _read_parquet(run_dir / SERIES) if series else None
+    se = SeriesColumns.from_frame(se_frame) if se_frame is not None else None
+    ca = ControllerArrays()
+    arr_path = run_dir / CONTROLLER_ARRAYS
+    if arrays and arr_path.is_file():
+        try:
+            with np.load(arr_path) as npz:
+                files = set(npz.files)
+                radius = float(npz["detection_radius_m"]) if "detection_radius_m" in files \
+                    else 0.0
+                ca = ControllerArrays(
+                    plan_xy_m=npz["plan_xy_m"] if "plan_xy_m" in files else ca.plan_xy_m,
+                    preview_xy_m=(npz["preview_xy_m"] if "preview_xy_m" in files
+                                  else ca.preview_xy_m),
+                    ellipses=npz["ellipses"] if "ellipses" in files else ca.ellipses,
+                    detection_radius_m=radius if math.isfinite(radius) else 0.0)
+        except (OSError, ValueError, KeyError) as exc:
+            raise RecordError(arr_path, "", "a readable .npz file", str(exc)) from exc
+    return RunRecord(info=info, outcome=outcome, road=road, trace=tr, neighbours=nb,
+                     arrays=ca, verdict=verdict, series=se, run_dir=run_dir)
+
+
+def iter_run_dirs(out_dir: str | Path) -> list[Path]:
+    """Run directories (with a run.json) directly under ``out_dir``, sorted by name.
+
+    Symbolic links are not followed: a run directory is always inside ``out_dir``.
+    """
+    out_dir = Path(out_dir)
+    found = []
+    for child in sorted(out_dir.iterdir()) if out_dir.is_dir() else []:
+        if child.is_symlink() or not child.is_dir():
+            continue
+        meta = child / RUN_JSON
+        if meta.is_file() and not meta.is_symlink():
+            found.append(child)
+    return found
