@@ -35,8 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.plant.vehicle_model import VehicleParams
 from controllers.behaviour.types import ObstaclePolicy, Obstacles
+from controllers.path.frenet import FrenetPath
+from controllers.plant.vehicle_model import VehicleParams
 
 
 @dataclass(frozen=True)
@@ -98,3 +99,20 @@ def ellipse_value(s_m: np.ndarray | float, y_m: np.ndarray | float, centre_s_m: 
     s = np.asarray(s_m, dtype=np.float64)
     y = np.asarray(y_m, dtype=np.float64)
     return (s - centre_s_m) ** 2 / semi_a_m**2 + (y - centre_y_m) ** 2 / semi_b_m**2 - 1.0
+
+
+def ellipses_in_world(path: FrenetPath, obstacles: Obstacles) -> np.ndarray:
+    """(K, 6) [cx_m, cy_m, heading_rad, semi_a_m, semi_b_m, active] of the ellipses in
+    the world frame, axes along the path tangent at their centre (for logs)."""
+    k = obstacles.count
+    out = np.zeros((k, 6))
+    if k == 0:
+        return out
+    x, y = path.to_global(obstacles.s_m, obstacles.y_m)
+    out[:, 0] = x
+    out[:, 1] = y
+    out[:, 2] = path.gamma(obstacles.s_m)
+    out[:, 3] = obstacles.semi_a_m
+    out[:, 4] = obstacles.semi_b_m
+    out[:, 5] = 1.0
+    return out

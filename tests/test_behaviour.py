@@ -1,4 +1,4 @@
-"""Obstacle building and pass-side choice from lane context (pure numpy, no SUMO)."""
+"""The behaviour layer: obstacles and pass-side choice from lane context (pure numpy, no SUMO)."""
 
 from __future__ import annotations
 
@@ -7,37 +7,49 @@ import math
 import numpy as np
 import pytest
 
+from controllers.behaviour.decision import EgoShape, LaneBehaviour
 from controllers.behaviour.ellipses import ellipse_semi_axes
-from controllers.path.frenet import FrenetPath
-from controllers.protocol import ObstaclePolicy
-from reports.metrics.geometry import box_corners, box_distance
-from suite.obstacles import (
+from controllers.behaviour.gap import GapPolicy, follow_speed_mps, gap_is_free
+from controllers.behaviour.types import (
     SIDE_FOLLOW,
     SIDE_LEFT,
     SIDE_NONE,
     SIDE_RIGHT,
-    GapPolicy,
+    Decision,
+    EgoFrenet,
+    LaneContext,
     LaneSlot,
-    ObstacleBuilder,
-    follow_speed_mps,
-    gap_is_free,
-    to_frenet,
+    ObstaclePolicy,
+    Traffic,
 )
-from suite.world.sumo import Neighbours
+from controllers.path.frenet import FrenetPath
+from reports.metrics.geometry import box_corners, box_distance
 
 W = 3.5
 THREE_LANES = {i: LaneSlot(i, W, True, False) for i in range(3)}
 
 
-def neighbours(rows: list[tuple[str, float, float, float]]) -> Neighbours:
+def neighbours(rows: list[tuple[str, float, float, float]]) -> Traffic:
     """rows: (id, x, y, speed) on a straight road along +X; 'stalled*' ids are stalled."""
     n = len(rows)
-    return Neighbours(
-        ids=[r[0] for r in rows], x_m=np.array([r[1] for r in rows], float),
+    return Traffic(
+        ids=tuple(r[0] for r in rows), x_m=np.array([r[1] for r in rows], float),
         y_m=np.array([r[2] for r in rows], float), heading_rad=np.zeros(n),
         speed_mps=np.array([r[3] for r in rows], float), length_m=np.full(n, 4.8),
-        width_m=np.full(n, 1.9), lane_index=np.zeros(n, dtype=np.int64), edge_id=["e0"] * n,
+        width_m=np.full(n, 1.9), lane_index=np.zeros(n, dtype=np.int64), road_id=("e0",) * n,
         stalled=np.array([r[0].startswith("stalled") for r in rows], dtype=bool))
+
+
+def behaviour(path: FrenetPath, shoulder: bool = False, gap: GapPolicy | None = None
+              ) -> LaneBehaviour:
+    return LaneBehaviour(path, ObstaclePolicy(), EgoShape(4.8, 1.9, shoulder), W,
+                         gap or GapPolicy())
+
+
+def build(b: LaneBehaviour, s: float, y: float, nb: Traffic, lanes: dict[int, LaneSlot],
+          ref_lane: int = 1, v: float = 25.0) -> Decision:
+    """The decision of ``b`` with the ego's CG at (s, y) on the straight road along +X."""
+    return b.decide(EgoFrenet(s, y, s, y, v), nb, LaneContext(lanes, ref_lane), 25.0)
 
 
 @pytest.fixture(scope="module")
@@ -47,10 +59,7 @@ def path() -> FrenetPath:
 
 def decide(path: FrenetPath, rows, lanes=THREE_LANES, ref_lane=1, shoulder=False,
            ego_s=100.0, ego_y=0.0, ego_v=25.0):
-    nb = neighbours(rows)
-    builder = ObstacleBuilder(ObstaclePolicy(), 4.8, 1.9, ref_lane, shoulder)
-    fn = to_frenet(path, nb, ego_s, ego_s, ego_y)
-    return builder.build(ego_s, ego_y, ego_v, 25.0, nb, fn, lanes, W)
+    return build(behaviour(path, shoulder), ego_s, ego_y, neighbours(rows), lanes, ref_lane, ego_v)
 
 
 def test_ellipse_contains_the_box_sum_rectangle_with_margins() -> None:
@@ -83,7 +92,7 @@ def test_stalled_car_in_lane_with_free_neighbours_is_passed_on_the_left(path: Fr
 def test_left_gap_occupied_picks_right(path: FrenetPath) -> None:
     d = decide(path, [("stalled0", 170.0, 0.0, 0.0), ("car", 110.0, W, 25.0)])
     assert d.side == SIDE_RIGHT and "left gap occupied" in d.reason
-    assert d.obstacles.y_m[list(d.ids).index("stalled0")] == pytest.approx(0.3)
+    assert d.obstacles.y_m[list(d.obstacle_ids).index("stalled0")] == pytest.approx(0.3)
 
 
 def test_no_free_side_follows_and_slows(path: FrenetPath) -> None:
@@ -112,15 +121,12 @@ def test_missing_and_barred_lanes_are_not_used(path: FrenetPath) -> None:
 
 
 def test_committed_side_is_kept_mid_manoeuvre(path: FrenetPath) -> None:
-    nb = neighbours([("stalled0", 170.0, 0.0, 0.0)])
-    builder = ObstacleBuilder(ObstaclePolicy(), 4.8, 1.9, 1, False)
-    first = builder.build(140.0, 1.5, 25.0, 25.0, nb, to_frenet(path, nb, 140.0, 140.0, 1.5),
-                          THREE_LANES, W)
+    b = behaviour(path)
+    first = build(b, 140.0, 1.5, neighbours([("stalled0", 170.0, 0.0, 0.0)]), THREE_LANES)
     assert first.side == SIDE_LEFT
     # A fast car now appears in the left lane; the ego is already 1.5 m across: stay left.
     nb2 = neighbours([("stalled0", 170.0, 0.0, 0.0), ("fast", 120.0, W, 35.0)])
-    again = builder.build(142.0, 1.6, 25.0, 25.0, nb2,
-                          to_frenet(path, nb2, 142.0, 142.0, 1.6), THREE_LANES, W)
+    again = build(b, 142.0, 1.6, nb2, THREE_LANES)
     assert again.side == SIDE_LEFT and again.reason.startswith("committed")
 
 
@@ -170,11 +176,11 @@ def test_follow_speed_known_answers() -> None:
 def test_lateral_reference_is_the_pass_lane_until_the_car_is_passed(path: FrenetPath) -> None:
     lanes = {0: LaneSlot(0, 3.0, False, True), 1: LaneSlot(1, W, True, False),
              2: LaneSlot(2, W, True, False)}
-    builder = ObstacleBuilder(ObstaclePolicy(), 4.8, 1.9, 1, True, GapPolicy(pass_after_m=15.0))
+    b = behaviour(path, True, GapPolicy(pass_after_m=15.0))
     nb = neighbours([("stalled0", 300.0, 0.0, 0.0)])
 
-    def at(s: float, y: float):
-        return builder.build(s, y, 25.0, 25.0, nb, to_frenet(path, nb, s, s, y), lanes, W)
+    def at(s: float, y: float) -> Decision:
+        return build(b, s, y, nb, lanes)
 
     assert at(200.0, 0.0).lateral_reference_m == pytest.approx(W)  # left: 3.5 m over
     alongside = at(301.0, 3.4)
@@ -185,8 +191,6 @@ def test_lateral_reference_is_the_pass_lane_until_the_car_is_passed(path: Frenet
     done = at(320.5, 3.5)
     assert done.lateral_reference_m == 0.0 and done.side == SIDE_NONE
     # Passing on a 3.0 m shoulder: the reference is between the two centres, 3.25 m right.
-    right = ObstacleBuilder(ObstaclePolicy(), 4.8, 1.9, 1, True)
     busy = neighbours([("stalled0", 300.0, 0.0, 0.0), ("carL", 200.0, W, 25.0)])
-    d = right.build(200.0, 0.0, 25.0, 25.0, busy, to_frenet(path, busy, 200.0, 200.0, 0.0),
-                    lanes, W)
+    d = build(behaviour(path, True), 200.0, 0.0, busy, lanes)
     assert d.side == SIDE_RIGHT and d.lateral_reference_m == pytest.approx(-3.25)

@@ -1,0 +1,75 @@
+"""The simulation loop: scene -> decision -> command -> dynamics -> record -> stop.
+
+Each stage is a small protocol (World inside the dynamics, Behaviour, Controller,
+EgoDynamics, Recorder, StopRule); :class:`Stages` holds one run's instances, built by
+:mod:`suite.run.runner` (SUMO) or by a test (a fake World).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+from controllers.behaviour.protocol import Behaviour
+from controllers.behaviour.types import Decision, LaneContext
+from controllers.protocol import Controller, Observation
+from suite.run.dynamics import EgoDynamics
+from suite.run.ego import EgoState
+from suite.run.recorder import Recorder, StepTiming
+from suite.run.safety import SafetyMonitor
+from suite.run.stop import StopRule
+
+DURATION = "duration"
+EGO_LEFT = "the ego left the simulation"
+
+
+class LaneSource(Protocol):
+    def at(self, s_m: float) -> LaneContext: ...
+
+
+@dataclass
+class Stages:
+    """One run's stages; ``set_speed_mps`` the cruise set-point, ``step_s`` the period."""
+
+    dynamics: EgoDynamics
+    behaviour: Behaviour
+    lanes: LaneSource
+    controller: Controller
+    monitor: SafetyMonitor
+    recorder: Recorder
+    stop: StopRule
+    set_speed_mps: float
+    step_s: float
+
+
+def observe(t_s: float, ego: EgoState, decision: Decision) -> Observation:
+    """The controller's view of this step."""
+    return Observation(t_s=t_s, state=ego.state.copy(), target_speed_mps=decision.target_speed_mps,
+                       obstacles=decision.obstacles, pass_side=decision.pass_side,
+                       lateral_reference_m=decision.lateral_reference_m)
+
+
+def run_loop(stages: Stages, n_steps: int) -> str:
+    """Run up to ``n_steps`` steps; returns why the run stopped."""
+    clock = time.perf_counter
+    ego, scene = stages.dynamics.start()
+    for step in range(n_steps):
+        t0 = clock()
+        lanes = stages.lanes.at(ego.s_m)
+        decision = stages.behaviour.decide(ego.frenet, scene.traffic, lanes, stages.set_speed_mps)
+        t1 = clock()
+        command = stages.controller.step(observe(step * stages.step_s, ego, decision))
+        t2 = clock()
+        after, scene = stages.dynamics.advance(command)
+        t3 = clock()
+        if after is None:
+            return EGO_LEFT
+        ego = after
+        safety = stages.monitor.check(ego, scene)
+        stages.recorder.record(step, scene.t_s, ego, decision, command, safety,
+                               StepTiming(t1 - t0, t2 - t0, t3 - t2), scene.traffic)
+        reason = stages.stop.check(scene.t_s, ego, safety)
+        if reason is not None:
+            return reason
+    return DURATION

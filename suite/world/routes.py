@@ -1,0 +1,164 @@
+"""The SUMO route file of a scenario: vehicle types, the ego, stalled cars, traffic.
+
+Stalled vehicles stop on their lane for the whole run. Background traffic: vehicles
+spread over the route at t = 0 with exponential headways (mean speed/flow, so traffic
+surrounds the ego from the first step) plus Poisson flows entering at the route's start,
+on every lane of the first route edge that admits passenger cars (or the lanes the
+catalog names). All randomness comes from one generator seeded by the scenario.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.sax.saxutils as su
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from controllers.plant.vehicle_model import VehicleParams
+from suite.catalog import Scenario
+from suite.road.network import RoadNetwork
+
+EGO_ID = "ego"
+STALLED_PREFIX = "stalled"
+INSERT_CLEARANCE_M = 30.0  # no pre-placed traffic this close to the ego or a stalled car
+
+
+def _fmt(value: float) -> str:
+    return f"{value:.3f}"
+
+
+@dataclass
+class RouteFile:
+    """Builds the route XML of ``scenario``; ``stalled_ids`` lists the stalled cars."""
+
+    scenario: Scenario
+    network: RoadNetwork
+    vehicle: VehicleParams
+    ssm_file: Path
+    stalled_ids: list[str] = field(default_factory=list)
+
+    @property
+    def route(self) -> tuple[str, ...]:
+        return tuple(self.scenario.route)
+
+    def xml(self) -> str:
+        sc = self.scenario
+        rng = np.random.default_rng(sc.traffic.seed if sc.traffic is not None else sc.seed)
+        main = f'  <route id="main" edges="{" ".join(self.route)}"/>'
+        lines = ["<routes>", *self._vtypes(), main]
+        self.stalled_ids = []
+        for i in range(len(sc.stalled)):
+            lines.extend(self._stalled(i))
+        lines.append(self._ego())
+        if sc.traffic is not None and sc.traffic.vehicles_per_hour > 0:
+            lines.extend(self._traffic(rng))
+        lines.append("</routes>")
+        return "\n".join(lines) + "\n"
+
+    def _vtypes(self) -> list[str]:
+        veh = self.vehicle
+        dev = self.scenario.traffic.speed_factor_dev if self.scenario.traffic is not None else 0.1
+        ssm_path = su.escape(str(self.ssm_file))
+        return [
+            f'  <vType id="ego" length="{_fmt(veh.length_m)}" width="{_fmt(veh.width_m)}" '
+            f'vClass="passenger" minGap="2.0" maxSpeed="60" color="0,160,255">',
+            '    <param key="has.ssm.device" value="true"/>',
+            '    <param key="device.ssm.measures" value="TTC DRAC PET"/>',
+            '    <param key="device.ssm.trajectories" value="true"/>',
+            f'    <param key="device.ssm.file" value="{ssm_path}"/>',
+            "  </vType>",
+            f'  <vType id="bg" vClass="passenger" length="4.5" width="1.8" speedDev="{_fmt(dev)}" '
+            f'lcStrategic="1.0" lcCooperative="1.0" lcSpeedGain="1.0" color="200,200,200"/>',
+        ]
+
+    def _stalled(self, i: int) -> list[str]:
+        st = self.scenario.stalled[i]
+        vid = f"{STALLED_PREFIX}{i}"
+        self.stalled_ids.append(vid)
+        edge, pos_on_edge = self.network.locate(self.route, st.pos_m)
+        k = self.route.index(edge)
+        pos = min(max(pos_on_edge, st.length_m + 0.1), self.network.edge_length_m(edge) - 0.1)
+        return [
+            f'  <route id="r_{vid}" edges="{" ".join(self.route[k:])}"/>',
+            f'  <vType id="stalled_{i}" vClass="passenger" color="255,60,60" '
+            f'length="{_fmt(st.length_m)}" width="{_fmt(st.width_m)}"/>',
+            f'  <vehicle id="{vid}" type="stalled_{i}" route="r_{vid}" depart="0" '
+            f'departLane="{st.lane}" departPos="{_fmt(pos)}" departSpeed="0">',
+            # A stop that outlasts any run keeps it on its lane, not parked beside it.
+            f'    <stop lane="{edge}_{st.lane}" endPos="{_fmt(pos)}" duration="1000000"/>',
+            "  </vehicle>",
+        ]
+
+    def _ego(self) -> str:
+        ego = self.scenario.ego
+        edge, pos = self.network.locate(self.route, ego.pos_m)
+        k = self.route.index(edge)
+        route_ref = "main"
+        extra = ""
+        if k > 0:
+            extra = f'  <route id="r_ego" edges="{" ".join(self.route[k:])}"/>\n'
+            route_ref = "r_ego"
+        return (f'{extra}  <vehicle id="{EGO_ID}" type="ego" route="{route_ref}" depart="0" '
+                f'departLane="{ego.lane}" departPos="{_fmt(max(pos, self.vehicle.length_m))}" '
+                f'departSpeed="{_fmt(ego.speed_mps)}"/>')
+
+    def traffic_lanes(self) -> list[int]:
+        """Lanes of the first route edge that get traffic."""
+        tr = self.scenario.traffic
+        if tr is not None and tr.lanes is not None:
+            return list(tr.lanes)
+        first = self.route[0]
+        return [li.index for li in self.network.lane_info(self.route[:1])
+                if li.edge_id == first and li.allows_passenger]
+
+    def _traffic(self, rng: np.random.Generator) -> list[str]:
+        tr = self.scenario.traffic
+        lanes = self.traffic_lanes()
+        if tr is None:
+            return []
+        if not lanes:
+            return []
+        per_lane_vph = tr.vehicles_per_hour / len(lanes)
+        speed_limit = max(li.speed_mps for li in self.network.lane_info(self.route))
+        speed = tr.speed_mps if tr.speed_mps is not None else speed_limit
+        lines = self._pre_placed(rng, lanes, per_lane_vph, speed)
+        end_s = float(self.scenario.duration_s) + 1.0
+        for lane in lanes:
+            if per_lane_vph <= 0:
+                continue
+            rate = per_lane_vph / 3600.0
+            lines.append(
+                f'  <flow id="flow_l{lane}" type="bg" route="main" begin="0" end="{_fmt(end_s)}" '
+                f'period="exp({rate:.6f})" departLane="{lane}" departSpeed="desired" '
+                f'departPos="base"/>')
+        return lines
+
+    def _pre_placed(self, rng: np.random.Generator, lanes: list[int], per_lane_vph: float,
+                    speed: float) -> list[str]:
+        """Vehicles at t = 0 with exponential headways (density k = q / v)."""
+        sc, net = self.scenario, self.network
+        mean_gap_m = speed / (per_lane_vph / 3600.0) if per_lane_vph > 0 else math.inf
+        if not math.isfinite(mean_gap_m):
+            return []
+        route_len = net.route_length_m(self.route)
+        blocked = [sc.ego.pos_m] + [st.pos_m for st in sc.stalled]
+        lines: list[str] = []
+        n = 0
+        for lane in lanes:
+            pos = float(rng.exponential(mean_gap_m)) + 10.0
+            while pos < route_len - 20.0:
+                near = any(abs(pos - b) < INSERT_CLEARANCE_M for b in blocked)
+                edge, pos_on_edge = net.locate(self.route, pos)
+                if not near and net.lane_count(edge) > lane:
+                    k = self.route.index(edge)
+                    vid = f"pre{n}"
+                    lines.append(f'  <route id="r_{vid}" edges="{" ".join(self.route[k:])}"/>')
+                    lines.append(
+                        f'  <vehicle id="{vid}" type="bg" route="r_{vid}" depart="0" '
+                        f'departLane="{lane}" departPos="{_fmt(max(pos_on_edge, 5.0))}" '
+                        f'departSpeed="{_fmt(speed)}"/>')
+                    n += 1
+                pos += max(float(rng.exponential(mean_gap_m)), 12.0)
+        return lines
