@@ -93,35 +93,35 @@ def _runner_and_logging(jobs: int = 1) -> dict[str, Any]:
         tmp_path = Path(tmp)
         catalog = tmp_path / "bench.toml"
         catalog.write_text(BENCH_CATALOG)
-        names = [s.name for s in load_catalog(catalog).scenarios]
-        out: dict[str, Any] = {"scenarios": names}
+        scenarios = load_catalog(catalog).scenarios
+        out: dict[str, Any] = {"scenarios": [s.name for s in scenarios]}
         walls: dict[str, float] = {}
-        metas: dict[str, list[dict[str, Any]]] = {}
+        records: dict[str, list[Any]] = {}
         # One untimed run first: it starts the forkserver (preload + numba warm-up).
-        LocalExecutor(jobs=1).run([RunJob(catalog, names[0], tmp_path / "warm",
+        LocalExecutor(jobs=1).run([RunJob(scenarios[0], tmp_path / "warm",
                                           RunOptions(write_rrd=False))])
         # Logged and unlogged runs alternate so that both see the same load drift.
         for label, write_rrd in (("no_log", False), ("log", True), ("no_log2", False),
                                  ("log2", True)):
             run_dir = tmp_path / label
-            jobs_list = [RunJob(catalog, n, run_dir, RunOptions(write_rrd=write_rrd,
-                                                                  catalog_name="bench"))
-                         for n in names]
+            jobs_list = [RunJob(sc, run_dir, RunOptions(write_rrd=write_rrd, catalog_name="bench"))
+                         for sc in scenarios]
             t0 = time.perf_counter()
-            metas[label] = LocalExecutor(jobs=jobs).run(jobs_list)
+            records[label] = LocalExecutor(jobs=jobs).run(jobs_list)
             walls[label] = time.perf_counter() - t0
         no_log = walls["no_log"] + walls["no_log2"]
         log = walls["log"] + walls["log2"]
         out["catalog_wall_s"] = walls
         out["logging_overhead_ratio_end_to_end"] = log / no_log
-        per_run = [(m["wall_s"] + m.get("log_s", 0.0)) / m["wall_s"]
-                   for m in metas["log"] + metas["log2"] if m.get("wall_s")]
+        per_run = [(r.outcome.wall_s + r.outcome.log_s) / r.outcome.wall_s
+                   for r in records["log"] + records["log2"]
+                   if r.outcome.wall_s > 0 and r.outcome.log_s == r.outcome.log_s]
         out["logging_overhead_ratio_per_run"] = {
             "median": statistics.median(per_run), "max": max(per_run)}
-        out["realtime_factor"] = {m["scenario"]: m.get("metrics", {}).get("realtime_factor")
-                                  for m in metas["no_log"]}
-        out["peak_rss_mb"] = {m["scenario"]: m.get("peak_rss_mb") for m in metas["log"]}
-        out["statuses"] = {m["scenario"]: m.get("status") for m in metas["log"]}
+        out["realtime_factor"] = {r.info.scenario: r.outcome.sim_time_s / r.outcome.wall_s
+                                  for r in records["no_log"] if r.outcome.wall_s > 0}
+        out["peak_rss_mb"] = {r.info.scenario: r.outcome.peak_rss_mb for r in records["log"]}
+        out["statuses"] = {r.info.scenario: r.status for r in records["log"]}
         out["logging_target_met"] = out["logging_overhead_ratio_end_to_end"] <= 1.15
     return out
 

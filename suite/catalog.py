@@ -786,6 +786,8 @@ def _path_target(root: Any, path: str) -> tuple[bool, str]:
                 continue
             if last and _optional_subkey_ok(comps, root):
                 return True, ""
+            if depth >= 1 and comps[0] == "controller":
+                return True, ""  # a nested controller option: the controller checks it
             return False, f"a path to an existing value ({path!r} does not exist after merging)"
         else:
             return False, f"a path into a table or list ({parent!r} is a {_type_name(node)})"
@@ -809,6 +811,8 @@ def _set_path(root: dict[str, Any], path: str, value: Any) -> None:
     comps = path.split(".")
     node: Any = root
     for comp in comps[:-1]:
+        if isinstance(node, dict) and comp not in node:
+            node[comp] = {}  # a nested controller option table the scenario left out
         node = node[int(comp)] if isinstance(node, list) else node[comp]
     last = comps[-1]
     if isinstance(node, list):

@@ -55,23 +55,23 @@ def cmd_list(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _status_line(meta: dict[str, Any], done: int, total: int) -> str:
-    status = meta.get("status", "?")
-    metrics = meta.get("metrics") or {}
+def _status_line(record: Any, done: int, total: int) -> str:
+    status = record.status
+    verdict = record.verdict
     extra = ""
-    if metrics:
-        extra = (f" gap={metrics.get('min_gap_m', float('nan')):.2f}m "
-                 f"progress={metrics.get('progress_m', float('nan')):.0f}m")
-    failed = meta.get("failed_criteria") or []
-    if failed:
-        extra += " failed: " + "; ".join(failed[:3])
-    return f"[{done}/{total}] {status.upper():7s} {meta.get('scenario', '?')}{extra}"
+    if verdict is not None:
+        extra = (f" gap={verdict.value('min_gap_m'):.2f}m "
+                 f"progress={verdict.value('progress_m'):.0f}m")
+        if verdict.failures:
+            extra += " failed: " + "; ".join(f.text for f in verdict.failures[:3])
+    return f"[{done}/{total}] {status.upper():7s} {record.info.scenario}{extra}"
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from reports import write_reports
+    from reports.record.codec import write_json_atomic
     from suite.exec.executors import LocalExecutor, RayExecutor, RunJob
-    from suite.run.runner import RunOptions, write_json
+    from suite.run.runner import RunOptions
 
     cat, scenarios = _load(args.catalog, args.filter)
     out = Path(args.out)
@@ -79,13 +79,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     jobs_n = args.jobs or os.cpu_count() or 1
     catalog_name = Path(args.catalog).stem
     run_jobs = [
-        RunJob(Path(args.catalog).resolve(), sc.name, out.resolve(),
+        RunJob(sc, out.resolve(),
                RunOptions(write_rrd=not args.no_log, catalog_name=catalog_name,
                           timeout_s=sc.timeout_s),
                sc.timeout_s)
         for sc in scenarios
     ]
-    write_json(out / "manifest.json", {
+    write_json_atomic(out / "manifest.json", {
         "catalog": str(Path(args.catalog).resolve()), "catalog_name": catalog_name,
         "scenarios": [sc.name for sc in scenarios], "started": time.strftime("%Y-%m-%dT%H:%M:%S"),
         "jobs": jobs_n, "executor": args.executor,
@@ -98,17 +98,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     done = 0
     t0 = time.perf_counter()
 
-    def on_done(meta: dict[str, Any]) -> None:
+    def on_done(record: Any) -> None:
         nonlocal done
         done += 1
-        print(_status_line(meta, done, len(run_jobs)), flush=True)
+        print(_status_line(record, done, len(run_jobs)), flush=True)
 
     results = executor.run(run_jobs, on_done)
     paths = write_reports(out)
     wall = time.perf_counter() - t0
     counts: dict[str, int] = {}
-    for meta in results:
-        counts[meta.get("status", "error")] = counts.get(meta.get("status", "error"), 0) + 1
+    for record in results:
+        counts[record.status] = counts.get(record.status, 0) + 1
     summary = ", ".join(f"{k}={v}" for k, v in sorted(counts.items()))
     print(f"{len(results)} scenarios in {wall:.1f} s: {summary}")
     print(f"results: {paths.results_csv}\nreport:  {paths.report_html}")
