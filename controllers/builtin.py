@@ -1,21 +1,38 @@
-"""Registers the controllers that ship with hwyeval (imported lazily by the registry)."""
+"""The controllers that ship with hwyeval: a table of factories the registry reads.
+
+Each factory maps catalog options to a ready controller (or, for ``sumo``, to
+:class:`controllers.protocol.SumoDriverModel`); it is cheap (no compilation, no solver
+set-up) and raises :class:`controllers.protocol.ConfigError` naming the dotted key of
+a bad option. This module imports nothing of the registry (no import cycle).
+"""
 
 from __future__ import annotations
 
 import importlib.util
+from collections.abc import Callable, Mapping
+from typing import Any
 
 from controllers.baselines.lane_keep import make_lane_keep
 from controllers.baselines.sumo_driver import make_sumo_driver
-from controllers.registry import register
+from controllers.protocol import Controller, SumoDriverModel
 from controllers.two_loop.controller import make_two_loop
 
-register("lane_keep", make_lane_keep)
-register("sumo", make_sumo_driver)
-register("two_loop", make_two_loop)
+ControllerFactory = Callable[[Mapping[str, Any]], Controller | SumoDriverModel]
 
-# The Ipopt baseline needs CasADi (the 'baselines' extra); without it the name is absent
-# and a catalog naming it gets a clear "unknown controller" error listing what exists.
-if importlib.util.find_spec("casadi") is not None:
-    from controllers.baselines.ipopt_nmpc import make_ipopt_nmpc
 
-    register("ipopt_nmpc", make_ipopt_nmpc)
+def _factories() -> dict[str, ControllerFactory]:
+    table: dict[str, ControllerFactory] = {
+        "lane_keep": make_lane_keep,
+        "sumo": make_sumo_driver,
+        "two_loop": make_two_loop,
+    }
+    # The Ipopt baseline needs CasADi (the 'baselines' extra); without it the name is
+    # absent and a catalog naming it gets a clear "unknown controller" error.
+    if importlib.util.find_spec("casadi") is not None:
+        from controllers.baselines.ipopt_nmpc import make_ipopt_nmpc
+
+        table["ipopt_nmpc"] = make_ipopt_nmpc
+    return table
+
+
+FACTORIES: Mapping[str, ControllerFactory] = _factories()

@@ -1,57 +1,54 @@
-"""Controller registry: name -> factory(options) -> Controller. Refuses duplicate names.
+"""Controller registry: name -> factory(options) -> Controller (or SumoDriverModel).
 
-A factory must be cheap (no compilation, no solver set-up) and must validate the
-options, raising :class:`controllers.protocol.ConfigError` naming the bad key, so
-that the catalog can check a whole catalog before running anything.
+The built-in factories come from :data:`controllers.builtin.FACTORIES` (read lazily,
+so that importing ``controllers`` stays light); :func:`register` adds a plug-in. A
+name is registered once only. A factory must be cheap (no compilation, no solver
+set-up) and must validate the options, raising :class:`controllers.protocol.ConfigError`
+naming the dotted key, so that a whole catalog is checked before anything runs.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from typing import Any
+import re
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
-from controllers.protocol import ConfigError, Controller
+from controllers.protocol import ConfigError, Controller, SumoDriverModel
 
-ControllerFactory = Callable[[Mapping[str, Any]], Controller]
+if TYPE_CHECKING:
+    from controllers.builtin import ControllerFactory
 
-_REGISTRY: dict[str, ControllerFactory] = {}
+_NAME = re.compile(r"[a-z0-9_]+")
+_PLUGINS: dict[str, ControllerFactory] = {}
+
+
+def _builtins() -> Mapping[str, ControllerFactory]:
+    from controllers.builtin import FACTORIES
+
+    return FACTORIES
+
+
+def _all() -> dict[str, ControllerFactory]:
+    return {**_builtins(), **_PLUGINS}
 
 
 def register(name: str, factory: ControllerFactory) -> None:
-    """Add a controller; a name may be registered once only."""
-    if not name or not name.replace("_", "").isalnum() or name.lower() != name:
+    """Add a plug-in controller; a name may be registered once only."""
+    if not _NAME.fullmatch(name or ""):
         raise ValueError(f"controller name must match [a-z0-9_]+, got {name!r}")
-    if name in _REGISTRY:
+    if name in _all():
         raise ValueError(f"controller {name!r} is already registered")
-    _REGISTRY[name] = factory
-
-
-def _load_builtins() -> None:
-    # Importing registers; kept lazy so that `controllers` imports stay light.
-    import controllers.builtin  # noqa: F401
+    _PLUGINS[name] = factory
 
 
 def names() -> list[str]:
-    _load_builtins()
-    return sorted(_REGISTRY)
+    """Every registered controller name, sorted."""
+    return sorted(_all())
 
 
-def make(name: str, options: Mapping[str, Any] | None = None) -> Controller:
+def make(name: str, options: Mapping[str, Any] | None = None) -> Controller | SumoDriverModel:
     """Build controller ``name`` with ``options`` (validated by its factory)."""
-    _load_builtins()
-    if name not in _REGISTRY:
-        raise ConfigError("controller.name", f"one of {sorted(_REGISTRY)}", name)
-    return _REGISTRY[name](dict(options or {}))
-
-
-def check_options(options: Mapping[str, Any],
-                  allowed: Mapping[str, type | tuple[type, ...]]) -> None:
-    """Raise ConfigError for an unknown key or a value of the wrong type."""
-    for key, value in options.items():
-        if key not in allowed:
-            raise ConfigError(f"controller.{key}", f"one of the keys {sorted(allowed)}", key)
-        kind = allowed[key]
-        if isinstance(value, bool) and kind in (int, float, (int, float)):
-            raise ConfigError(f"controller.{key}", "a number", value)
-        if not isinstance(value, kind):
-            raise ConfigError(f"controller.{key}", f"a value of type {kind}", value)
+    factories = _all()
+    if name not in factories:
+        raise ConfigError("controller.name", f"one of {sorted(factories)}", name)
+    return factories[name](dict(options or {}))

@@ -13,7 +13,8 @@ from controllers.path.frenet import FrenetPath
 from controllers.protocol import Obstacles
 from controllers.two_loop.outer.cgmres import CgmresOuter, cgmres_updates
 from controllers.two_loop.outer.gmres import cgmres_step
-from controllers.two_loop.outer.ocp import OuterParams, SpmmProblem, obstacle_table, pack_params
+from controllers.two_loop.outer.ocp import SpmmProblem, obstacle_table, pack_params, stage_width
+from controllers.two_loop.outer.params import CgmresParams
 
 STRAIGHT = np.array([[0.0, 0.0], [1000.0, 0.0]])
 
@@ -48,7 +49,7 @@ def test_generic_cgmres_tracks_moving_root() -> None:
     assert float(np.max(np.abs(residual(u, x, t)))) < 2e-3
 
 
-def _converge_fixed(params: OuterParams, obs: np.ndarray, x0: np.ndarray, vt: float,
+def _converge_fixed(params: CgmresParams, obs: np.ndarray, x0: np.ndarray, vt: float,
                     path: FrenetPath, t_end: float = 6.0, dt: float = 0.005,
                     ) -> tuple[np.ndarray, list[float]]:
     """Growing-horizon start at x0, then C/GMRES updates with x0 and obstacles fixed."""
@@ -63,7 +64,7 @@ def _converge_fixed(params: OuterParams, obs: np.ndarray, x0: np.ndarray, vt: fl
     work = np.zeros(work_size(u.size, params.n_stages, params.k_max))
     xs = np.zeros((params.n_stages + 1, 3))
     stats = np.zeros(4)
-    prm = pack_params(params, vt)
+    prm = pack_params(params, vt, row_scaling=params.row_scaling)
     es = []
     t = 0.0
     while t < t_end:
@@ -76,7 +77,7 @@ def _converge_fixed(params: OuterParams, obs: np.ndarray, x0: np.ndarray, vt: fl
 
 def test_initial_residual_is_tiny() -> None:
     path = FrenetPath.cached(STRAIGHT)
-    outer = CgmresOuter(path, OuterParams())
+    outer = CgmresOuter(path, CgmresParams(), 3)
     x0 = np.array([10.0, 0.4, 0.02])
     outer.reset(x0, 25.0)
     plan = outer.update(0.0, x0, _obstacles([60.0], [-0.3]), 25.0, 0.02)
@@ -99,8 +100,8 @@ def test_cgmres_converges_to_reference_solution(cost: str) -> None:
     # error of the continuation decays like the horizon's growth.
     # J2 (theta as an input) needs k_max = 16 here: with 12-14 Krylov vectors this
     # stationary growing-horizon start diverges (J1 and J3 converge with the default 12).
-    params = OuterParams(cost=cost, n_obstacles=2, horizon_growth_rate=5.0,
-                         k_max=16 if cost == "J2" else 12)
+    params = CgmresParams(cost=cost, horizon_growth_rate=5.0,
+                          k_max=16 if cost == "J2" else 12)
     obs = obstacle_table(2)
     obs[0] = [50.0, -0.3, 0.0, 0.0, 6.8, 2.3, 1.0, 1.0, 0.0]
     x0 = np.array([10.0, 0.0, 0.0])
@@ -130,13 +131,13 @@ def test_cgmres_converges_to_reference_solution(cost: str) -> None:
 
 def test_guard_keeps_barrier_argument_positive() -> None:
     path = FrenetPath.cached(STRAIGHT)
-    params = OuterParams(n_obstacles=1, n_stages=10)
+    params = CgmresParams(n_stages=10)
     prob = SpmmProblem(path, params)
     obs = obstacle_table(1)
     obs[0] = [40.0, -0.3, 0.0, 0.0, 6.8, 2.3, 1.0, 1.0, 0.0]
     x0 = np.array([0.0, 0.0, 0.0])
     u = prob.initial_guess(x0, obs, 25.0)
-    m = params.stage_width
+    m = stage_width(1)
     u[3 * m + 2] = -params.zeta + 0.01  # Z + zeta = 0.01 < z_guard
     u[5 * m + 2] = -params.zeta - 0.5  # already negative
     udot = np.zeros_like(u)
@@ -147,7 +148,8 @@ def test_guard_keeps_barrier_argument_positive() -> None:
     meta, coef, _ = path.tables()
     cfg = np.array([params.k_max, params.zeta_s, params.fd_step, params.z_guard, params.zeta])
     cgmres_updates(u, udot, x0, x0, 0.0, 0.005, 1, np.array([-100.0, 2.4, 2.0]), 0.0,
-                   pack_params(params, 25.0), obs, prob.w, meta, coef, cfg, work,
+                   pack_params(params, 25.0, row_scaling=params.row_scaling), obs, prob.w,
+                   meta, coef, cfg, work,
                    np.zeros((11, 3)), stats)
     assert stats[1] >= 1
     z = u.reshape(params.n_stages, m)[1:, 2]
@@ -156,7 +158,7 @@ def test_guard_keeps_barrier_argument_positive() -> None:
 
 def test_fallback_on_blow_up_brakes_along_lane() -> None:
     path = FrenetPath.cached(STRAIGHT)
-    outer = CgmresOuter(path, OuterParams(fallback_hold_s=0.1))
+    outer = CgmresOuter(path, CgmresParams(fallback_hold_s=0.1), 3)
     x0 = np.array([0.0, 0.5, 0.0])
     outer.reset(x0, 25.0)
     outer.update(0.0, x0, Obstacles.empty(), 25.0, 0.02)
@@ -178,8 +180,8 @@ def test_fallback_on_blow_up_brakes_along_lane() -> None:
 
 def test_obstacle_slots_follow_their_obstacles_and_fade() -> None:
     path = FrenetPath.cached(STRAIGHT)
-    params = OuterParams(n_obstacles=3, obstacle_fade_s=0.1)
-    outer = CgmresOuter(path, params)
+    params = CgmresParams(obstacle_fade_s=0.1)
+    outer = CgmresOuter(path, params, 3)
     x = np.array([0.0, 0.0, 0.0])
     outer.reset(x, 25.0)
     outer.update(0.0, x, Obstacles.empty(), 25.0, 0.02)
@@ -208,7 +210,7 @@ def test_cgmres_solution_is_ipopts_local_minimum() -> None:
     ca = pytest.importorskip("casadi")
     path = FrenetPath.cached(STRAIGHT)
     k_obs = 1
-    params = OuterParams(n_obstacles=k_obs, horizon_growth_rate=5.0, n_stages=12)
+    params = CgmresParams(horizon_growth_rate=5.0, n_stages=12)
     obs = obstacle_table(k_obs)
     obs[0] = [50.0, -0.3, 0.0, 0.0, 6.8, 2.3, 1.0, 1.0, 0.0]
     x0 = np.array([10.0, 0.0, 0.0])
@@ -216,7 +218,7 @@ def test_cgmres_solution_is_ipopts_local_minimum() -> None:
     u, es = _converge_fixed(params, obs, x0, vt, path)
     assert es[-1] < 1e-8
     prob = SpmmProblem(path, params)
-    n, m = params.n_stages, params.stage_width
+    n, m = params.n_stages, stage_width(k_obs)
     dtau = np.diff(prob.w) * params.horizon_s
     u2 = u.reshape(n, m)
     # Decision variables per stage: V, omega, Z (the multiplier is Ipopt's).
@@ -281,8 +283,8 @@ def test_moving_lateral_reference_is_tracked_without_residual_jump() -> None:
         a = min(max((t - 2.0) / 3.0, 0.0), 1.0)
         return 3.5 * 0.5 * (1.0 - math.cos(math.pi * a))
 
-    es_smooth, states = _follow_own_plan(CgmresOuter(path, OuterParams()), smooth, 8.0)
-    es_step, _ = _follow_own_plan(CgmresOuter(path, OuterParams()),
+    es_smooth, states = _follow_own_plan(CgmresOuter(path, CgmresParams(), 3), smooth, 8.0)
+    es_step, _ = _follow_own_plan(CgmresOuter(path, CgmresParams(), 3),
                                   lambda t: 3.5 if t >= 2.0 else 0.0, 8.0)
     assert max(es_smooth) < 0.05, max(es_smooth)
     assert max(es_step) > 20.0 * max(es_smooth), (max(es_step), max(es_smooth))
@@ -293,7 +295,7 @@ def test_moving_lateral_reference_is_tracked_without_residual_jump() -> None:
 def test_cgmres_converges_with_lateral_reference(cost: str) -> None:
     """Fixed problem with yr = 3.5 m and a scheduled Cy: E -> 0 at a root of F (scipy)."""
     path = FrenetPath.cached(STRAIGHT)
-    params = OuterParams(cost=cost, n_obstacles=1, horizon_growth_rate=5.0, c_y_terminal=0.5)
+    params = CgmresParams(cost=cost, horizon_growth_rate=5.0, c_y_terminal=0.5)
     obs = obstacle_table(1)
     obs[0] = [50.0, -0.3, 0.0, 0.0, 6.8, 2.3, 1.0, 1.0, 0.0]
     x0 = np.array([10.0, 0.0, 0.0])
@@ -308,7 +310,7 @@ def test_cgmres_converges_with_lateral_reference(cost: str) -> None:
     work = np.zeros(work_size(u.size, params.n_stages, params.k_max))
     xs = np.zeros((params.n_stages + 1, 3))
     stats = np.zeros(4)
-    prm = pack_params(params, 25.0, 3.5, lateral_weight=5.0)
+    prm = pack_params(params, 25.0, 3.5, lateral_weight=5.0, row_scaling=params.row_scaling)
     prm_before = prm.copy()
     t = 0.0
     while t < 6.0:

@@ -15,6 +15,7 @@ import pytest
 
 pytest.importorskip("casadi")
 
+from controllers.params import ParamError  # noqa: E402
 from controllers.protocol import ConfigError, Obstacles  # noqa: E402
 from controllers.two_loop.outer.ipopt import (  # noqa: E402
     IpoptOuter,
@@ -23,15 +24,30 @@ from controllers.two_loop.outer.ipopt import (  # noqa: E402
     benchmark_outer,
     ellipse_values,
 )
-from controllers.two_loop.outer.ocp import OuterParams, SpmmProblem, obstacle_table  # noqa: E402
+from controllers.two_loop.outer.ocp import SpmmProblem, obstacle_table  # noqa: E402
+from controllers.two_loop.outer.params import (  # noqa: E402
+    CgmresParams,
+    IpoptParams,
+    ipopt_params,
+)
 
 VT = 25.0
 PERIOD = 0.02
 
 
-def _outer(path: Any = None, params: OuterParams | None = None, **kw: Any) -> IpoptOuter:
-    return IpoptOuter(path if path is not None else StraightPath(2000.0),
-                      params if params is not None else OuterParams(), **kw)
+_SOLVER_KEYS = ("formulation", "max_iter", "tol")
+
+
+def _outer(path: Any = None, params: IpoptParams | None = None, **kw: Any) -> IpoptOuter:
+    """IpoptOuter on ``params`` (default IpoptParams()); formulation, max_iter and tol in
+    ``kw`` replace the params' own, the rest goes to the constructor."""
+    base = params if params is not None else IpoptParams()
+    solver = {k: kw.pop(k) for k in _SOLVER_KEYS if k in kw}
+    if solver:
+        from dataclasses import replace
+
+        base = replace(base, **solver)
+    return IpoptOuter(path if path is not None else StraightPath(2000.0), base, **kw)
 
 
 def _obstacle(s: float = 40.0, y: float = -0.3, vs: float = 0.0) -> Obstacles:
@@ -179,10 +195,12 @@ def test_repeated_failures_fall_back_to_braking_along_the_lane() -> None:
     assert outer.fallback_count == int(0.5 * outer.tau[-1] / PERIOD) + 5
 
 
-def test_bad_formulation_is_a_config_error() -> None:
-    with pytest.raises(ConfigError) as err:
+def test_bad_formulation_is_refused_naming_it() -> None:
+    with pytest.raises(ParamError) as err:
         _outer(formulation="soft")
-    assert err.value.key == "controller.formulation"
+    assert err.value.field == "formulation"
+    with pytest.raises(TypeError):  # C/GMRES's parameters are not Ipopt's
+        IpoptOuter(StraightPath(100.0), CgmresParams())  # type: ignore[arg-type]
 
 
 # ---------------------------------------------------------------- vs C/GMRES
@@ -232,7 +250,7 @@ def test_ipopt_solution_zeroes_the_cgmres_residual(kind: str, x0: tuple[float, .
     target lane's direction so that Ipopt's |omega| bound stays inactive: from y = 0
     it is active at stage 0 and F_omega != 0 there, by construction).
     """
-    params = OuterParams(c_y_terminal=0.5)
+    params = IpoptParams(c_y_terminal=0.5)
     path = _frenet_path(kind)
     x = np.asarray(x0)
     obs = _obstacle(obs_s)
@@ -240,10 +258,10 @@ def test_ipopt_solution_zeroes_the_cgmres_residual(kind: str, x0: tuple[float, .
     outer.reset(x, VT)
     plan = outer.update(0.0, x, obs, VT, PERIOD, lateral_reference_m=y_ref, lateral_weight=c_y)
     assert not plan.fallback
-    table = obstacle_table(params.n_obstacles)
+    table = obstacle_table(outer.n_slots)
     table[0, :6] = _pack_obstacles(obs)[0]
     table[0, 6] = 1.0
-    ref_params = params if c_y is None else OuterParams(c_y_terminal=0.5, c_y=c_y)
+    ref_params = params if c_y is None else IpoptParams(c_y_terminal=0.5, c_y=c_y)
     f, xs, _ = SpmmProblem(path, ref_params).residual(outer.stage_unknowns(), x, table, VT,
                                                       lateral_reference_m=y_ref)
     if y_ref:
@@ -264,18 +282,18 @@ def test_plan_matches_cgmres_converged_plan() -> None:
     grown to T (1 - e^-8). Ipopt solves the same OCP on C/GMRES's current stage grid.
     """
     cg_mod = pytest.importorskip("controllers.two_loop.outer.cgmres")
-    params = OuterParams()
+    params = CgmresParams()
     path = _frenet_path("straight")
     obs = _obstacle(40.0)
     x0 = np.zeros(3)
-    cg = cg_mod.CgmresOuter(path, params)
+    cg = cg_mod.CgmresOuter(path, params, 3)
     cg.reset(x0, VT)
     cplan = None
     for k in range(200):
         cplan = cg.update(k * PERIOD, x0, obs, VT, PERIOD)
     assert cplan is not None and not cplan.fallback
     assert cplan.residual < 0.05
-    ip = IpoptOuter(path, params, tol=1e-10, stage_times_s=cplan.stage_times_s)
+    ip = _outer(path, ipopt_params(params), tol=1e-10, stage_times_s=cplan.stage_times_s)
     ip.reset(x0, VT)
     iplan = ip.update(0.0, x0, obs, VT, PERIOD)
     assert not iplan.fallback
@@ -289,7 +307,7 @@ def test_plan_matches_cgmres_converged_plan() -> None:
 
 @pytest.mark.slow
 def test_hard_constraint_deadlocks_where_the_barrier_passes() -> None:
-    """METHOD §9: with the hard ellipse inequality the SPMM stalls at the boundary.
+    """docs/method.md §9: with the hard ellipse inequality the SPMM stalls at the boundary.
 
     The ego follows its own plan (benchmark_outer). Once its state touches the ellipse
     with the heading pointing into it, the first Euler step can only be feasible with
@@ -330,21 +348,30 @@ def test_factory_validates_options() -> None:
 
     ctrl = make_ipopt_nmpc({"formulation": "hard", "max_iter": 30, "ipopt_tol": 1e-7,
                             "c_z": 25.0})
-    assert ctrl.name == "ipopt_nmpc" and not ctrl.simulated_by_sumo
+    assert ctrl.name == "ipopt_nmpc"
     params = ctrl.parameters()
-    assert params["name"] == "ipopt_nmpc" and params["formulation"] == "hard"
-    assert params["outer"] == "ipopt" and params["c_z"] == 25.0 and params["max_iter"] == 30
-    for bad, key in (({"formulation": "soft"}, "controller.formulation"),
-                     ({"max_iter": 0}, "controller.max_iter"),
-                     ({"ipopt_tol": 2.0}, "controller.ipopt_tol"),
+    outer = params["outer"]
+    assert params["name"] == "ipopt_nmpc" and outer["formulation"] == "hard"
+    assert outer["c_z"] == 25.0 and outer["max_iter"] == 30 and outer["tol"] == 1e-7
+    assert "k_max" not in outer and "sub_updates" not in outer  # Ipopt's, not C/GMRES's
+    assert make_ipopt_nmpc(params).parameters() == params  # round trip
+    for bad, key in (({"formulation": "soft"}, "controller.outer.formulation"),
+                     ({"max_iter": 0}, "controller.outer.max_iter"),
+                     ({"ipopt_tol": 2.0}, "controller.outer.tol"),
                      ({"outer": "cgmres"}, "controller.outer"),
                      ({"name": "two_loop"}, "controller.name"),
-                     ({"cost": "J2"}, "controller.cost"),
+                     ({"cost": "J2"}, "controller.outer.cost"),
+                     ({"outer": {"cost": "J1"}}, "controller.outer.cost"),
                      ({"bogus": 1}, "controller.bogus"),
-                     ({"max_iter": 1.5}, "controller.max_iter")):
+                     ({"max_iter": 1.5}, "controller.outer.max_iter"),
+                     # No option is accepted and ignored: C/GMRES's are unknown here.
+                     ({"outer": {"k_max": 16}}, "controller.outer.k_max"),
+                     ({"k_max": 16}, "controller.outer.k_max"),
+                     ({"sub_updates": 2}, "controller.outer.sub_updates"),
+                     ({"outer": {"row_scaling": False}}, "controller.outer.row_scaling")):
         with pytest.raises(ConfigError) as err:
             make_ipopt_nmpc(bad)
-        assert err.value.key == key
+        assert err.value.key == key, (bad, err.value)
 
 
 @pytest.mark.slow

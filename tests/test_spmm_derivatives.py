@@ -1,4 +1,4 @@
-"""Hand-derived SPMM derivatives (METHOD.md §3) against central finite differences.
+"""Hand-derived SPMM derivatives (docs/method.md §3) against central finite differences.
 
 All three costs, obstacles active (one of them moving), on a path whose curvature
 varies (kappa and kappa' both nonzero), at random states/inputs/costates.
@@ -11,15 +11,16 @@ import pytest
 
 from controllers.path.frenet import FrenetPath
 from controllers.two_loop.outer.ocp import (
-    OuterParams,
     SpmmProblem,
     constraint_eval,
     obstacle_table,
     pack_params,
     stage_eval,
     stage_fractions,
+    stage_width,
     terminal_eval,
 )
+from controllers.two_loop.outer.params import OcpParams
 
 K_OBS = 2
 
@@ -41,11 +42,11 @@ def _obstacles() -> np.ndarray:
 
 
 def _stage_fn(path: FrenetPath, cost: str, y_ref: float = 0.0):  # noqa: ANN202
-    params = OuterParams(cost=cost, n_obstacles=K_OBS, c_y_terminal=0.7, c_e_terminal=3.0)
+    params = OcpParams(cost=cost, c_y_terminal=0.7, c_e_terminal=3.0)
     prm = pack_params(params, 24.0, y_ref, lateral_weight=None if y_ref == 0.0 else 7.0)
     meta, coef, _ = path.tables()
     obs = _obstacles()
-    m = params.stage_width
+    m = stage_width(K_OBS)
 
     def h(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float) -> tuple:
         f = np.empty(3)
@@ -144,8 +145,8 @@ def test_residual_is_reduced_lagrangian_gradient(spiral: FrenetPath, cost: str,
 
     This checks the costate recursion (24) and the whole residual (26), not just H.
     """
-    params = OuterParams(cost=cost, n_obstacles=K_OBS, n_stages=12, chebyshev=chebyshev,
-                         c_y_terminal=0.5, c_e_terminal=2.0)
+    params = OcpParams(cost=cost, n_stages=12, chebyshev=chebyshev,
+                       c_y_terminal=0.5, c_e_terminal=2.0)
     prob = SpmmProblem(spiral, params)
     obs = _obstacles()
     x0 = np.array([170.0, 0.5, float(spiral.gamma(170.0)) + 0.03])
@@ -155,7 +156,7 @@ def test_residual_is_reduced_lagrangian_gradient(spiral: FrenetPath, cost: str,
     f, _, _ = prob.residual(u, x0, obs, 22.0, horizon=2.0, tshift=0.3,
                             lateral_reference_m=y_ref)
     dtau = np.diff(stage_fractions(params)) * 2.0
-    m = params.stage_width
+    m = stage_width(K_OBS)
     for k in range(u.shape[0]):
         i, comp = divmod(k, m)
         if i == 0 and comp >= 2:
@@ -173,7 +174,7 @@ def test_residual_is_reduced_lagrangian_gradient(spiral: FrenetPath, cost: str,
 
 
 def test_inactive_slot_is_inert(spiral: FrenetPath) -> None:
-    params = OuterParams(n_obstacles=K_OBS, n_stages=10)
+    params = OcpParams(n_stages=10)
     prob = SpmmProblem(spiral, params)
     obs = _obstacles()
     obs[1, 6] = 0.0
@@ -189,10 +190,10 @@ def test_inactive_slot_is_inert(spiral: FrenetPath) -> None:
 def test_lateral_reference_shifts_the_cost_and_is_not_compiled_in(spiral: FrenetPath) -> None:
     """Cy (y - yr)²: the stage cost at y = yr equals the one at y = 0 with yr = 0, H_y
     changes by -2 Cy yr, and new yr / Cy values reuse the compiled kernels."""
-    params = OuterParams(cost="J3", n_obstacles=K_OBS, c_y_terminal=0.7)
+    params = OcpParams(cost="J3", c_y_terminal=0.7)
     meta, coef, _ = spiral.tables()
     obs = obstacle_table(K_OBS)  # inert slots
-    m = params.stage_width
+    m = stage_width(K_OBS)
     s = 200.0
     u = np.zeros(m)
     u[0], u[1] = 24.0, 0.01

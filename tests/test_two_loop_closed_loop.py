@@ -20,9 +20,11 @@ from controllers.sim.closed_loop import (
     simulate,
     steering_chatter,
 )
-from controllers.two_loop.controller import TwoLoopController, TwoLoopParams, make_two_loop
-from controllers.two_loop.outer.ocp import OuterParams
+from controllers.two_loop.controller import TwoLoopController, make_two_loop
+from controllers.two_loop.diagnostics import TwoLoopDiagnostics
+from controllers.two_loop.outer.params import CgmresParams
 from controllers.two_loop.outer.protocol import OuterPlan
+from controllers.two_loop.params import TwoLoopParams
 
 DT = 0.02
 STRAIGHT = np.array([[0.0, 0.0], [1500.0, 0.0]])
@@ -37,8 +39,9 @@ YAW_RATE = 0.95
 
 
 def _run(road: np.ndarray = STRAIGHT, pass_side: int = 1, duration: float = 14.0,
-         vehicles: list[FrenetVehicle] | None = None, **options: object) -> dict:
-    ctl = make_two_loop(dict(options))
+         vehicles: list[FrenetVehicle] | None = None, **sections: object) -> dict:
+    """Closed loop with ``sections`` as the catalog's nested tables (outer={...}, ...)."""
+    ctl = make_two_loop(dict(sections))
     return simulate(ctl, road, STALLED if vehicles is None else vehicles,
                     duration_s=duration, dt=DT, pass_side=pass_side)
 
@@ -55,31 +58,39 @@ def _assert_safe_and_comfortable(tr: dict) -> None:
 # ----------------------------------------------------------------------------- config
 def test_make_two_loop_validates_options() -> None:
     t0 = time.perf_counter()
-    ctl = make_two_loop({"name": "two_loop", "cost": "J3", "preview": True, "n_stages": 20,
-                         "horizon_s": 2.4, "k_max": 16, "margin_lat_m": 0.5})
+    ctl = make_two_loop({"name": "two_loop", "outer": {"cost": "J3", "n_stages": 20,
+                                                       "horizon_s": 2.4, "k_max": 16},
+                         "inner": {"preview": True}, "policy": {"margin_lat_m": 0.5}})
     assert time.perf_counter() - t0 < 0.05  # cheap: nothing compiled or solved
     assert isinstance(ctl, Controller)
-    assert ctl.name == "two_loop" and ctl.simulated_by_sumo is False
+    assert ctl.name == "two_loop" and ctl.diagnostics_type is TwoLoopDiagnostics
     assert ctl.obstacle_policy == ObstaclePolicy(margin_lat_m=0.5, detection_distance_m=100.0)
+    assert ctl.params.outer.k_max == 16 and isinstance(ctl.params.outer.horizon_s, float)
     params = ctl.parameters()
-    assert json.loads(json.dumps(params))["cost"] == "J3"
-    cases = [({"bogus": 1}, "controller.bogus"), ({"cost": "J4"}, "controller.cost"),
-             ({"n_stages": 20.0}, "controller.n_stages"), ({"preview": 1}, "controller.preview"),
-             ({"horizon_s": -1.0}, "controller.horizon_s"), ({"k_max": 0}, "controller.k_max"),
-             ({"outer": "qp"}, "controller.outer"), ({"zeta": 0.01}, "controller.z_guard"),
-             ({"horizon_s": math.nan}, "controller.horizon_s"),
-             ({"max_obstacles": -1}, "controller.max_obstacles"),
-             ({"lateral_ref_rate_mps": 0.0}, "controller.lateral_ref_rate_mps"),
-             ({"lateral_ref_filter_s": -0.1}, "controller.lateral_ref_filter_s"),
-             ({"lateral_ref_filter_s": "0.2"}, "controller.lateral_ref_filter_s"),
-             ({"c_y_lateral_ref": -1.0}, "controller.c_y_lateral_ref"),
-             ({"lateral_weight_time_s": 0.0}, "controller.lateral_weight_time_s")]
+    assert json.loads(json.dumps(params))["outer"]["cost"] == "J3"
+    cases = [({"bogus": 1}, "controller.bogus"), ({"cost": "J4"}, "controller.outer.cost"),
+             ({"outer": {"xyz": 1.0}}, "controller.outer.xyz"),
+             ({"outer": {"n_stages": 20.0}}, "controller.outer.n_stages"),
+             ({"inner": {"preview": 1}}, "controller.inner.preview"),
+             ({"outer": {"horizon_s": -1.0}}, "controller.outer.horizon_s"),
+             ({"outer": {"k_max": 0}}, "controller.outer.k_max"),
+             ({"outer": "qp"}, "controller.outer"),
+             ({"outer": {"zeta": 0.01}}, "controller.outer.z_guard"),
+             ({"outer": {"horizon_s": math.nan}}, "controller.outer.horizon_s"),
+             ({"policy": {"max_obstacles": -1}}, "controller.policy.max_obstacles"),
+             ({"lateral": {"rate_mps": 0.0}}, "controller.lateral.rate_mps"),
+             ({"lateral": {"filter_s": -0.1}}, "controller.lateral.filter_s"),
+             ({"lateral": {"filter_s": "0.2"}}, "controller.lateral.filter_s"),
+             ({"lateral": {"c_y_engaged": -1.0}}, "controller.lateral.c_y_engaged"),
+             ({"lateral": {"weight_time_s": 0.0}}, "controller.lateral.weight_time_s"),
+             ({"inner": {"lookahead_s": 3.0}}, "controller.inner.lookahead_s"),
+             ({"outer": {"c_thetadot": 0.0}}, "controller.outer.c_thetadot")]
     for opts, key in cases:
         with pytest.raises(ConfigError) as err:
             make_two_loop(opts)
         assert err.value.key == key, (opts, err.value)
     with pytest.raises(ValueError):
-        TwoLoopParams(c_thetadot=0.0)  # J3 needs it
+        CgmresParams(c_thetadot=0.0)  # J3 needs it
 
 
 def test_ellipse_geometry_and_detection() -> None:
@@ -146,8 +157,8 @@ def test_slower_moving_car_overtaken() -> None:
 
 def test_follow_mode_stops_behind_blocking_car() -> None:
     # No side is free (pass_side 0: no offset, the ellipse sits on the lane): the runner
-    # lowers the target speed along its comfortable follow profile (suite.obstacles).
-    from suite.obstacles import GapPolicy, follow_speed_mps
+    # lowers the target speed along its comfortable follow profile (behaviour.gap).
+    from controllers.behaviour.gap import GapPolicy, follow_speed_mps
 
     v0 = 20.0
     gap_policy = GapPolicy()
@@ -183,7 +194,7 @@ def test_j1_chatters_more_than_j3() -> None:
     """
     out = {}
     for cost in ("J1", "J3"):
-        tr = _run(cost=cost, duration=10.0)
+        tr = _run(outer={"cost": cost}, duration=10.0)
         in_view = np.abs(150.0 - tr["s_m"]) < 80.0
         out[cost] = (steering_chatter(tr["steer_rad"], DT, in_view), float(np.max(tr["residual"])))
         assert not tr["box_overlap"].any()
@@ -203,7 +214,7 @@ def test_preview_lowers_plan_tracking_error_on_curve() -> None:
     res = {}
     for ff in (False, True):
         for preview in (False, True):
-            tr = _run(road=CURVE, preview=preview, feedforward=ff)
+            tr = _run(road=CURVE, inner={"preview": preview, "feedforward": ff})
             err = plan_tracking_error(tr, 0.5)
             pre = (tr["s_m"] > 20.0) & (tr["s_m"] < 90.0)
             res[(ff, preview)] = {
@@ -223,13 +234,23 @@ def test_preview_lowers_plan_tracking_error_on_curve() -> None:
 
 # ------------------------------------------------------------------ robustness
 class _NanOuter:
-    """An outer loop that returns garbage: the controller must never emit NaN."""
+    """A planner that returns garbage: the controller must never emit NaN."""
 
-    def __init__(self, path: FrenetPath, params: OuterParams) -> None:
-        self.n = params.n_stages
+    updates_per_period = 1
+
+    def __init__(self, path: FrenetPath, n_slots: int) -> None:
+        self.n = TwoLoopParams().outer.n_stages
+        self.restarts = 0
+
+    def horizon_growth(self, elapsed_s: float) -> float:
+        return 1.0
 
     def reset(self, x0: np.ndarray, target_speed_mps: float) -> None:
         pass
+
+    def restart(self, x0: np.ndarray, target_speed_mps: float,
+                target_accel_mps2: float = 0.0) -> None:
+        self.restarts += 1
 
     def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,
                target_speed_mps: float, dt_s: float,
@@ -240,17 +261,17 @@ class _NanOuter:
                          np.full(self.n, np.nan), math.nan, False, 0, 0.0)
 
 
-def test_never_nan_and_custom_outer_factory() -> None:
-    ctl = TwoLoopController(TwoLoopParams(), outer_factory=_NanOuter)
+def test_never_nan_and_custom_planner_factory() -> None:
+    ctl = TwoLoopController(TwoLoopParams(), planner_factory=_NanOuter)
     tr = simulate(ctl, STRAIGHT, [], duration_s=1.0, dt=DT)
     assert np.all(np.isfinite(tr["steer_rad"])) and np.all(np.isfinite(tr["torque_nm"]))
     assert np.all(tr["fallback"] == 1.0)
     assert tr["speed_mps"][-1] < 25.0  # it brakes
-    assert isinstance(ctl.path, FrenetPath)
+    assert isinstance(ctl.path, FrenetPath) and isinstance(ctl.planner, _NanOuter)
 
 
 def test_command_contents() -> None:
-    ctl = make_two_loop({"n_preview": 8})
+    ctl = make_two_loop({"inner": {"n_preview": 8}})
     tr = simulate(ctl, STRAIGHT, [(150.0, 0.0, 4.8, 1.9)], duration_s=0.5, dt=DT)
     for key in ("outer_s", "inner_s", "residual", "fallback", "guard_fired", "steer_outer_rad",
                 "steer_corr_rad", "torque_outer_nm", "torque_corr_nm", "planned_speed_mps",
@@ -259,9 +280,10 @@ def test_command_contents() -> None:
         assert key in tr and np.all(np.isfinite(tr[key])), key
     assert ctl.plan is not None and ctl.plan.states.shape == (21, 3)
     cmd = ctl.step(Observation(t_s=0.52, state=tr["state"][-1], target_speed_mps=25.0))
-    assert cmd.arrays["plan_xy_m"].shape == (21, 2)
-    assert cmd.arrays["preview_xy_m"].shape == (9, 2)
-    assert np.all(np.isfinite(cmd.arrays["plan_xy_m"]))
+    assert isinstance(cmd.diagnostics, TwoLoopDiagnostics)
+    assert cmd.plan_xy_m is not None and cmd.plan_xy_m.shape == (21, 2)
+    assert cmd.preview_xy_m is not None and cmd.preview_xy_m.shape == (9, 2)
+    assert np.all(np.isfinite(cmd.plan_xy_m))
 
 
 
@@ -271,6 +293,7 @@ def test_lateral_reference_step_is_smoothed() -> None:
     continuous with |yr'| <= lateral_ref_rate_mps, C/GMRES's E stays at its stationary
     level (no residual jump), Cy blends to c_y_lateral_ref, and the car settles on yr."""
     params = TwoLoopParams()
+    lat = params.lateral
 
     def lateral(t: float, s: float, y: float) -> tuple[int, float]:
         return 1, (3.5 if 1.0 <= t < 7.0 else 0.0)
@@ -280,14 +303,14 @@ def test_lateral_reference_step_is_smoothed() -> None:
     yr, t = tr["lateral_ref_m"], tr["t_s"]
     rate = np.diff(yr) / DT
     # (<= 1 % over: the semi-implicit Euler sub-steps of the filter)
-    assert np.max(np.abs(rate)) <= params.lateral_ref_rate_mps * 1.01
-    assert np.max(np.abs(np.diff(rate))) / DT < 3.0 * params.lateral_ref_rate_mps / (
-        params.lateral_ref_filter_s)  # yr' continuous (bounded yr'')
+    assert np.max(np.abs(rate)) <= lat.rate_mps * 1.01
+    assert np.max(np.abs(np.diff(rate))) / DT < 3.0 * lat.rate_mps / (
+        lat.filter_s)  # yr' continuous (bounded yr'')
     assert yr[t < 1.0].max() == 0.0 and abs(yr[np.argmin(np.abs(t - 6.9))] - 3.5) < 1e-3
     assert abs(yr[-1]) < 1e-3
     assert np.max(tr["residual"]) < 0.03  # a raw step gives E ~ 0.2 (test_cgmres)
-    assert tr["lateral_weight"].max() == pytest.approx(params.c_y_lateral_ref)
-    assert tr["lateral_weight"][-1] == pytest.approx(params.c_y)
+    assert tr["lateral_weight"].max() == pytest.approx(lat.c_y_engaged)
+    assert tr["lateral_weight"][-1] == pytest.approx(params.outer.c_y)
     y = tr["y_m"]
     assert np.max(np.abs(y[(t > 6.0) & (t < 7.0)] - 3.5)) < 0.1
     assert np.max(np.abs(y[t > 12.0])) < 0.1
@@ -312,7 +335,8 @@ def test_pass_stalled_car_with_lateral_reference(road: str, speed: float) -> Non
     lane centre at the end."""
     obstacle_s = 150.0
     ctl = make_two_loop({})
-    fn = pass_reference(obstacle_s, 1, LANE, ctl.params.detection_distance_m, RELEASE_PAST_M)
+    fn = pass_reference(obstacle_s, 1, LANE, ctl.params.policy.detection_distance_m,
+                        RELEASE_PAST_M)
     duration = (obstacle_s + RELEASE_PAST_M + 8.0 * speed) / speed + 1.0
     tr = simulate(ctl, STRAIGHT if road == "straight" else CURVE,
                   [FrenetVehicle(obstacle_s, 0.0)], duration_s=duration, dt=DT,
@@ -341,4 +365,48 @@ def test_lateral_reference_waits_for_speed() -> None:
                   lateral_fn=lambda t, s, y: (1, 3.5))
     assert np.max(np.abs(tr["lateral_ref_m"])) < 1e-9
     assert np.all(np.isfinite(tr["steer_rad"])) and np.all(tr["fallback"] == 0)
-    assert tr["lateral_weight"][-1] == pytest.approx(TwoLoopParams().c_y_lateral_ref)
+    assert tr["lateral_weight"][-1] == pytest.approx(TwoLoopParams().lateral.c_y_engaged)
+
+
+# ------------------------------------------------------------- typed diagnostics
+def test_step_sets_every_diagnostic_field(monkeypatch: pytest.MonkeyPatch) -> None:
+    """step() names every field of TwoLoopDiagnostics (none left at its default by
+    omission), and over a launch + pass run each field other than the rare-event ones
+    takes a value other than its default at some step."""
+    import dataclasses
+
+    import controllers.two_loop.controller as controller_module
+
+    given: list[set[str]] = []
+
+    def recording(**kwargs: object) -> TwoLoopDiagnostics:
+        given.append(set(kwargs))
+        return TwoLoopDiagnostics(**kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(controller_module, "TwoLoopDiagnostics", recording)
+    names = {f.name for f in dataclasses.fields(TwoLoopDiagnostics)}
+    # Standing start with a pull-out to the left lane: launch, hand-over, then the
+    # two-loop controller with a moving lateral reference and a car in the other lane.
+    tr = simulate(make_two_loop({}), STRAIGHT, [FrenetVehicle(120.0, -3.5)], duration_s=8.0,
+                  dt=DT, initial_speed_mps=0.0, target_speed_mps=22.0,
+                  lateral_fn=lambda t, s, y: (1, 3.5))
+    assert given and all(g == names for g in given), names - set.intersection(*given)
+    # Defaults are NaN, 0 or False: finite and non-zero at some step is set for real.
+    for name in names - {"fallback", "guard_fired"}:  # rare events: not expected here
+        values = tr[name]
+        assert np.all(np.isfinite(values)), name
+        assert np.any(values != 0.0), name
+    assert tr["launch"][0] == 1.0 and tr["launch"][-1] == 0.0
+
+
+def test_parameters_round_trip_through_the_factory() -> None:
+    """parameters() is the nested dict of the effective parameters; the factory takes it
+    back unchanged, and JSON does not change it."""
+    ctl = make_two_loop({"outer": {"c_y": 2}, "inner": {"preview": False},
+                         "launch_blend_s": 1.0, "policy": {"margin_lat_m": 0.5}})
+    params = ctl.parameters()
+    assert params["outer"]["c_y"] == 2.0 and isinstance(params["outer"]["c_y"], float)
+    assert params["inner"]["preview"] is False and params["launch"]["blend_s"] == 1.0
+    assert set(params) == {"name", "outer", "inner", "lateral", "launch", "policy"}
+    again = make_two_loop(json.loads(json.dumps(params)))
+    assert again.params == ctl.params and again.parameters() == params

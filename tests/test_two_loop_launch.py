@@ -1,5 +1,5 @@
-"""Two-loop controller: low-speed launch / standstill handling (controllers.two_loop.controller,
-"Launch" in the module docstring), closed loop on the plant (no SUMO).
+"""Two-loop controller: low-speed launch / standstill handling (controllers.two_loop.launch,
+docs/two_loop.md "Launch"), closed loop on the plant (no SUMO).
 
 The SUMO case: the ego follows and stops behind a stalled car (no side free); later a
 side frees up, the runner sets pass_side +1, lateral_reference_m +3.5 m and the target
@@ -17,11 +17,12 @@ import pytest
 from scipy.signal import savgol_filter
 
 from controllers.behaviour.ellipses import FrenetVehicle
+from controllers.behaviour.gap import GapPolicy, follow_speed_mps
 from controllers.plant.vehicle_model import VehicleParams
 from controllers.protocol import ConfigError
 from controllers.sim.closed_loop import FOLLOW_SIDE, simulate
-from controllers.two_loop.controller import TwoLoopParams, make_two_loop
-from suite.obstacles import GapPolicy, follow_speed_mps
+from controllers.two_loop.controller import make_two_loop
+from controllers.two_loop.params import TwoLoopParams
 
 DT = 0.02
 STRAIGHT = np.array([[0.0, 0.0], [1500.0, 0.0]])
@@ -98,7 +99,7 @@ def test_stop_behind_stalled_car_then_launch_and_pass(road: str) -> None:
     assert np.max(tr["residual"][after]) < 2.0
     # Smooth hand-over (blend): no torque or steering step.
     k = engaged[-1] + 1
-    window = slice(k - 5, k + int(TwoLoopParams().launch_blend_s / DT) + 5)
+    window = slice(k - 5, k + int(TwoLoopParams().launch.blend_s / DT) + 5)
     assert np.max(np.abs(np.diff(tr["torque_nm"][window]))) < 100.0  # N m per 20 ms
     assert np.max(np.abs(np.diff(tr["steer_rad"][window]))) < 0.02
     # Back to speed, settled in the target lane.
@@ -139,24 +140,31 @@ def test_launch_not_engaged_at_speed_or_when_disabled() -> None:
     tr = simulate(make_two_loop({}), STRAIGHT, [], duration_s=2.0, dt=DT,
                   initial_speed_mps=20.0, target_speed_mps=25.0)
     assert np.all(tr["launch"] == 0.0) and np.all(tr["launch_weight"] == 0.0)
-    tr = simulate(make_two_loop({"launch": False}), STRAIGHT, [], duration_s=1.0, dt=DT,
+    tr = simulate(make_two_loop({"launch": {"enabled": False}}), STRAIGHT, [], duration_s=1.0,
+                  dt=DT,
                   initial_speed_mps=0.0, target_speed_mps=22.0)
     assert np.all(tr["launch"] == 0.0)
 
 
 def test_launch_parameters_validated() -> None:
     cases: list[tuple[dict[str, object], str]] = [
-             ({"launch_speed_mps": 0.0}, "controller.launch_speed_mps"),
-             ({"launch_engage_speed_mps": 2.0}, "controller.launch_engage_speed_mps"),
-             ({"launch_hold_target_mps": 1.6}, "controller.launch_hold_target_mps"),
-             ({"launch_max_speed_mps": 1.0}, "controller.launch_max_speed_mps"),
-             ({"launch_blend_s": 0.0}, "controller.launch_blend_s"),
-             ({"launch_clearance_m": -0.1}, "controller.launch_clearance_m"),
-             ({"launch_k_pv": math.nan}, "controller.launch_k_pv"),
-             ({"launch": 1}, "controller.launch")]
+             ({"handover_speed_mps": 0.0}, "controller.launch.handover_speed_mps"),
+             ({"engage_speed_mps": 2.0}, "controller.launch.engage_speed_mps"),
+             ({"hold_target_mps": 1.6}, "controller.launch.hold_target_mps"),
+             ({"max_speed_mps": 1.0}, "controller.launch.max_speed_mps"),
+             ({"blend_s": 0.0}, "controller.launch.blend_s"),
+             ({"clearance_m": -0.1}, "controller.launch.clearance_m"),
+             ({"k_pv": math.nan}, "controller.launch.k_pv"),
+             ({"enabled": 1}, "controller.launch.enabled")]
     for opts, key in cases:
         with pytest.raises(ConfigError) as err:
-            make_two_loop(opts)
+            make_two_loop({"launch": opts})
         assert err.value.key == key, (opts, err.value)
+    # The former flat names are aliases of the same options.
+    with pytest.raises(ConfigError) as err:
+        make_two_loop({"launch": 1})
+    assert err.value.key == "controller.launch.enabled"
     ctl = make_two_loop({"launch_speed_mps": 2.5, "launch_blend_s": 1.0})
-    assert ctl.parameters()["launch_speed_mps"] == 2.5
+    assert ctl.parameters()["launch"]["handover_speed_mps"] == 2.5
+    assert ctl.params.launch == make_two_loop(
+        {"launch": {"handover_speed_mps": 2.5, "blend_s": 1.0}}).params.launch

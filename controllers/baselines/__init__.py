@@ -1,7 +1,7 @@
-"""Comparison baselines for the two-loop controller (METHOD.md §8, result 3).
+"""Comparison baselines for the two-loop controller (docs/method.md §8).
 
-``ipopt_outer``: the outer-loop OCP of C/GMRES solved by Ipopt (CasADi), warm-started.
-``ipopt_nmpc``: the two-loop controller with that outer solver (factory only; the
-lead registers it). Both import CasADi lazily so ``import controllers.baselines``
-stays light when CasADi is not installed.
+``ipopt_nmpc``: the two-loop controller with the Ipopt outer loop (the planner itself
+is :mod:`controllers.two_loop.outer.ipopt`; CasADi is imported lazily, so importing
+this package stays light without it). ``lane_keep``: pure pursuit, no avoidance.
+``sumo``: SUMO's own driver model (not a controller).
 """

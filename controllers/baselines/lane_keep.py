@@ -17,41 +17,54 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
+from controllers.behaviour.types import ObstaclePolicy
+from controllers.params import build, check_leaves, check_range, param, to_dict
 from controllers.path.frenet import FrenetPath
-from controllers.protocol import Command, ConfigError, Observation, ScenarioContext
-from controllers.registry import check_options
+from controllers.protocol import (
+    Command,
+    ConfigError,
+    Observation,
+    ScenarioContext,
+    StepDiagnostics,
+)
+
+NAME = "lane_keep"
 
 
 @dataclass(frozen=True)
 class LaneKeepParams:
-    lookahead_gain_s: float = 0.6
-    lookahead_min_m: float = 6.0
-    lookahead_max_m: float = 40.0
-    speed_kp_per_s: float = 0.8
-    speed_ki_per_s2: float = 0.1
-    integral_limit_mps: float = 5.0
+    """Pure pursuit and PI speed control (module docstring)."""
+
+    lookahead_gain_s: float = param(0.6, "s", "k_la: look-ahead distance per unit speed")
+    lookahead_min_m: float = param(6.0, "m", "shortest look-ahead distance")
+    lookahead_max_m: float = param(40.0, "m", "longest look-ahead distance")
+    speed_kp_per_s: float = param(0.8, "1/s", "K_p: speed error -> acceleration")
+    speed_ki_per_s2: float = param(0.1, "1/s²", "K_i: integral of the speed error")
+    integral_limit_mps: float = param(5.0, "m/s", "clamp of the speed-error integral")
 
     def __post_init__(self) -> None:
-        for name, value in asdict(self).items():
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(
-                    f"LaneKeepParams.{name} must be a finite number >= 0, got {value!r}")
-        if self.lookahead_min_m <= 0 or self.lookahead_max_m < self.lookahead_min_m:
-            raise ValueError("LaneKeepParams: need 0 < lookahead_min_m <= lookahead_max_m")
+        check_leaves(self)
+        for name in ("lookahead_gain_s", "speed_kp_per_s", "speed_ki_per_s2",
+                     "integral_limit_mps"):
+            check_range(self, name, ge=0.0)
+        check_range(self, "lookahead_min_m", gt=0.0)
+        check_range(self, "lookahead_max_m", ge=self.lookahead_min_m)
 
 
 class LaneKeepController:
-    name = "lane_keep"
-    simulated_by_sumo = False
-    obstacle_policy = None
+    """Pure pursuit on the reference lane; takes no obstacles (``obstacle_policy`` None)."""
 
-    def __init__(self, params: LaneKeepParams) -> None:
-        self.params = params
+    name = NAME
+    diagnostics_type: ClassVar[type[StepDiagnostics]] = StepDiagnostics
+
+    def __init__(self, params: LaneKeepParams | None = None) -> None:
+        self.params = params if params is not None else LaneKeepParams()
+        self.obstacle_policy: ObstaclePolicy | None = None
         self._path: FrenetPath | None = None
         self._ctx: ScenarioContext | None = None
         self._s_hint = 0.0
@@ -92,16 +105,17 @@ class LaneKeepController:
         torque = veh.mass_kg * veh.wheel_radius_m * acc
         elapsed = time.perf_counter() - t0
         return Command(steer_rad=steer, torque_nm=torque,
-                       diagnostics={"outer_s": elapsed, "inner_s": 0.0})
+                       diagnostics=StepDiagnostics(outer_s=elapsed, inner_s=0.0))
 
-    def parameters(self) -> Mapping[str, Any]:
-        return {"controller": self.name, **asdict(self.params)}
+    def parameters(self) -> dict[str, Any]:
+        """``{"name": "lane_keep", **parameters}``: accepted back by the factory."""
+        return {"name": self.name, **to_dict(self.params)}
 
 
 def make_lane_keep(options: Mapping[str, Any]) -> LaneKeepController:
-    check_options(options, {k: (int, float) for k in LaneKeepParams.__dataclass_fields__})
-    try:
-        params = LaneKeepParams(**{k: float(v) for k, v in options.items()})
-    except ValueError as exc:
-        raise ConfigError("controller", "valid lane_keep parameters", str(exc)) from exc
-    return LaneKeepController(params)
+    """``lane_keep`` from catalog options; raises ConfigError naming the bad key."""
+    opts = dict(options)
+    given = opts.pop("name", NAME)
+    if given != NAME:
+        raise ConfigError("controller.name", f"{NAME!r}", given)
+    return LaneKeepController(build(LaneKeepParams, opts))

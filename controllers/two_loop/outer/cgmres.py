@@ -52,7 +52,6 @@ from controllers.two_loop.outer.ocp import (
     _P_SCALE,
     _P_YREF,
     _P_YREFD,
-    OuterParams,
     TargetSpeedRamp,
     activate_slot,
     deactivate_slot,
@@ -61,7 +60,9 @@ from controllers.two_loop.outer.ocp import (
     pack_params,
     stage_fractions,
     stage_init,
+    stage_width,
 )
+from controllers.two_loop.outer.params import CgmresParams
 from controllers.two_loop.outer.protocol import OuterPlan
 
 
@@ -71,12 +72,14 @@ def _horizon(t: float, t_init: float, tf: float, rate: float) -> tuple[float, fl
     return tf * (1.0 - a), rate * tf * a
 
 
+# One compiled loop on purpose (no calls per sub-update, no allocation): its branches are
+# the GMRES iteration, the guard and the finiteness checks, hence the complexity.
 @numba.njit(cache=True, fastmath=_FM)
-def cgmres_updates(uvec: np.ndarray, udot: np.ndarray, x0a: np.ndarray, x0b: np.ndarray,
-                   t_a: float, dt_total: float, n_sub: int, hz: np.ndarray, tshift_b: float,
-                   prm: np.ndarray, obs: np.ndarray, w: np.ndarray, meta: np.ndarray,
-                   coef: np.ndarray, cfg: np.ndarray, work: np.ndarray, xs_out: np.ndarray,
-                   stats: np.ndarray) -> None:
+def cgmres_updates(  # noqa: C901
+        uvec: np.ndarray, udot: np.ndarray, x0a: np.ndarray, x0b: np.ndarray, t_a: float,
+        dt_total: float, n_sub: int, hz: np.ndarray, tshift_b: float, prm: np.ndarray,
+        obs: np.ndarray, w: np.ndarray, meta: np.ndarray, coef: np.ndarray, cfg: np.ndarray,
+        work: np.ndarray, xs_out: np.ndarray, stats: np.ndarray) -> None:
     """``n_sub`` C/GMRES updates from (x0a, t_a) to (x0b, t_a + dt_total), in place.
 
     hz = [t_init, T_f, growth rate]; tshift_b = (t_a + dt_total) - obstacle time stamp;
@@ -221,19 +224,28 @@ def cgmres_updates(uvec: np.ndarray, udot: np.ndarray, x0a: np.ndarray, x0b: np.
 
 
 def work_size(n: int, n_stages: int, k_max: int) -> int:
+    """Length of the flat scratch array :func:`cgmres_updates` needs (n unknowns)."""
     return 4 * n + (k_max + 1) * n + (k_max + 1) * k_max + 4 * k_max + 1 + 12 * (n_stages + 1)
 
 
 class CgmresOuter:
-    """C/GMRES implementation of :class:`controllers.two_loop.outer.protocol.OuterSolver`."""
+    """C/GMRES :class:`controllers.two_loop.outer.protocol.OuterPlanner` (module docstring).
 
-    def __init__(self, path: FrenetPath, params: OuterParams) -> None:
+    path: the reference path; params: the OCP and the solver's settings; n_slots: the
+    number K of obstacle slots (the obstacle policy's ``max_obstacles``): U has
+    N (2 + 2K) unknowns. Building it loads the compiled kernels (numba's cache).
+    """
+
+    def __init__(self, path: FrenetPath, params: CgmresParams, n_slots: int) -> None:
+        if not (isinstance(n_slots, int) and n_slots >= 0):
+            raise ValueError(f"n_slots must be an int >= 0, got {n_slots!r}")
         self.path = path
         self.params = params
+        self.n_slots = n_slots
         self.meta, self.coef, _ = path.tables()
         self.w = stage_fractions(params)
-        n = params.n_unknowns
-        k = params.n_obstacles
+        self.stage_width = stage_width(n_slots)
+        n = params.n_stages * self.stage_width
         self._u = np.zeros(n)
         self._udot = np.zeros(n)
         self._work = np.zeros(work_size(n, params.n_stages, params.k_max))
@@ -241,7 +253,7 @@ class CgmresOuter:
         self._stats = np.zeros(4)
         self._cfg = np.array([params.k_max, params.zeta_s, params.fd_step, params.z_guard,
                               params.zeta], dtype=np.float64)
-        self._obs = obstacle_table(k)
+        self._obs = obstacle_table(n_slots)
         self._obs_t = 0.0
         self.time_each_subupdate = False
         self.subupdate_times_s: list[float] = []
@@ -260,22 +272,36 @@ class CgmresOuter:
         self.guard_total = 0
         self._load_kernels()
 
+    def _pack(self, target_speed_mps: float, lateral_reference_m: float = 0.0,
+              lateral_weight: float | None = None) -> np.ndarray:
+        return pack_params(self.params, target_speed_mps, lateral_reference_m,
+                           lateral_weight=lateral_weight, row_scaling=self.params.row_scaling)
+
     def _load_kernels(self) -> None:
         # Load every compiled kernel now (from numba's cache, or compile once), so
         # that the first obstacle does not pay it inside a timed control step.
-        tab = obstacle_table(self.params.n_obstacles)
+        tab = obstacle_table(self.n_slots)
         u = np.zeros_like(self._u)
         xs = np.zeros_like(self._xs)
-        prm = pack_params(self.params, 1.0)
-        if self.params.n_obstacles:
+        prm = self._pack(1.0)
+        if self.n_slots:
             activate_slot(u, xs, 1.0, 0.0, self.w, prm, tab, 0)
-            deactivate_slot(u, self.params.n_stages, self.params.n_obstacles, 0)
+            deactivate_slot(u, self.params.n_stages, self.n_slots, 0)
         stage_init(xs[0], 0.0, prm, tab, self.meta, self.coef, self.params.n_stages, u)
         hz = np.array([-1.0, 1.0, 1.0])
         cgmres_updates(u, np.zeros_like(u), xs[0], xs[0], 0.0, 0.01, 1, hz, 0.0, prm, tab, self.w,
                        self.meta, self.coef, self._cfg, self._work, xs, np.zeros(4))
 
     # ------------------------------------------------------------------ protocol
+    @property
+    def updates_per_period(self) -> int:
+        """Continuation updates in one ``update`` call (``sub_updates``)."""
+        return self.params.sub_updates
+
+    def horizon_growth(self, elapsed_s: float) -> float:
+        """Relative length 1 - exp(-rate elapsed_s) of a horizon grown for elapsed_s."""
+        return 1.0 - math.exp(-self.params.horizon_growth_rate * max(elapsed_s, 0.0))
+
     def reset(self, x0: np.ndarray, target_speed_mps: float) -> None:
         """Forget everything; the next update initialises at its state (E ~ 0)."""
         self._initialised = False
@@ -284,7 +310,7 @@ class CgmresOuter:
         self._ramp.reset(self._vt)
         self._yr = 0.0
         self._cy = self.params.c_y
-        self._obs = obstacle_table(self.params.n_obstacles)
+        self._obs = obstacle_table(self.n_slots)
         self._fallback_until = -math.inf
         self.fallback_count = 0
         self.guard_total = 0
@@ -305,7 +331,7 @@ class CgmresOuter:
         self._ramp.reset(self._vt)
         if math.isfinite(acc):
             self._ramp.ramp_accel_mps2 = acc
-        self._obs = obstacle_table(self.params.n_obstacles)
+        self._obs = obstacle_table(self.n_slots)
         self._fallback_until = -math.inf
 
     @property
@@ -314,31 +340,59 @@ class CgmresOuter:
         return self._vt
 
     def horizon_now(self, t_s: float) -> float:
+        """The grown horizon T(t_s) [s]."""
         return self.params.horizon_s * (1.0 - math.exp(-self.params.horizon_growth_rate
                                                        * max(t_s - self._hz[0], 0.0)))
 
     def _initialise(self, t_s: float, x0: np.ndarray) -> None:
         self._hz[0] = t_s
-        prm = pack_params(self.params, self._vt, self._yr, lateral_weight=self._cy)
+        prm = self._pack(self._vt, self._yr, lateral_weight=self._cy)
         stage_init(x0, 0.0, prm, self._obs, self.meta, self.coef, self.params.n_stages, self._u)
         self._udot[:] = 0.0
         self._initialised = True
 
+    # ------------------------------------------------------------ obstacle slots
     def _match_obstacles(self, t_s: float, obstacles: Obstacles, horizon: float,
                          prm: np.ndarray) -> None:
         """Keep each obstacle in its slot; fade slots in and out (see module docstring)."""
-        k = self.params.n_obstacles
-        if k == 0:
+        if self.n_slots == 0:
             return
-        tab = self._obs
+        self._advance_slots(max(t_s - self._obs_t, 0.0))
+        used, assign = self._assign_known(obstacles)
         fade_rate = 1.0 / self.params.obstacle_fade_s
-        dt = max(t_s - self._obs_t, 0.0)
-        # Advance every slot to t_s (constant velocity, weight ramp).
-        for j in range(k):
+        # Slots whose obstacle is gone fade out, then become inert.
+        tab = self._obs
+        for j in range(self.n_slots):
+            if tab[j, 6] > 0.5 and not used[j]:
+                tab[j, 8] = -fade_rate
+                if tab[j, 7] <= 0.0:
+                    self._free_slot(j)
+        for q in range(assign.shape[0]):
+            new = assign[q] < 0
+            if new:
+                j_new = self._take_slot(used)
+                if j_new < 0:
+                    continue
+                assign[q] = j_new
+                used[j_new] = True
+            self._fill_slot(int(assign[q]), obstacles, q, new, fade_rate, horizon, prm)
+        self._obs_t = t_s
+
+    def _advance_slots(self, dt: float) -> None:
+        """Every active slot to dt later: constant velocity, weight ramp."""
+        tab = self._obs
+        for j in range(self.n_slots):
             if tab[j, 6] > 0.5:
                 tab[j, 0] += tab[j, 2] * dt
                 tab[j, 1] += tab[j, 3] * dt
                 tab[j, 7] = min(max(tab[j, 7] + tab[j, 8] * dt, 0.0), 1.0)
+
+    def _assign_known(self, obstacles: Obstacles) -> tuple[np.ndarray, np.ndarray]:
+        """(used (K,) bool, assign (n,) slot or -1): each of the first n = min(count, K)
+        obstacles matched to the nearest active slot within 3 m / half its A along
+        and 1 m across."""
+        tab = self._obs
+        k = self.n_slots
         n_in = min(obstacles.count, k)
         used = np.zeros(k, dtype=bool)
         assign = -np.ones(n_in, dtype=np.int64)
@@ -354,43 +408,45 @@ class CgmresOuter:
             if best >= 0:
                 used[best] = True
                 assign[q] = best
-        # Slots whose obstacle is gone fade out, then become inert.
-        for j in range(k):
-            if tab[j, 6] > 0.5 and not used[j]:
-                tab[j, 8] = -fade_rate
-                if tab[j, 7] <= 0.0:
-                    tab[j] = obstacle_table(1)[0]
-                    deactivate_slot(self._u, self.params.n_stages, k, j)
-        for q in range(n_in):
-            new = assign[q] < 0
-            if new:
-                free = [j for j in range(k) if not used[j] and tab[j, 6] < 0.5]
-                if not free:
-                    # Recycle the weakest fading slot (its multipliers are the smallest).
-                    fading = [j for j in range(k) if not used[j]]
-                    if not fading:
-                        continue
-                    jf = min(fading, key=lambda jj: tab[jj, 7])
-                    tab[jf] = obstacle_table(1)[0]
-                    deactivate_slot(self._u, self.params.n_stages, k, jf)
-                    free = [jf]
-                assign[q] = free[0]
-                used[free[0]] = True
-            j = int(assign[q])
-            tab[j, 0] = float(obstacles.s_m[q])
-            tab[j, 1] = float(obstacles.y_m[q])
-            tab[j, 2] = float(obstacles.speed_s_mps[q])
-            tab[j, 3] = float(obstacles.speed_y_mps[q])
-            tab[j, 4] = max(float(obstacles.semi_a_m[q]), 1e-3)
-            tab[j, 5] = max(float(obstacles.semi_b_m[q]), 1e-3)
-            if new:
-                tab[j, 6] = 1.0
-                tab[j, 7] = 0.0 if self._initialised else 1.0
-            tab[j, 8] = fade_rate if tab[j, 7] < 1.0 else 0.0
-            if new and self._initialised:
-                activate_slot(self._u, self._xs, horizon, 0.0, self.w, prm, tab, j)
-        self._obs_t = t_s
+        return used, assign
 
+    def _free_slot(self, j: int) -> None:
+        self._obs[j] = obstacle_table(1)[0]
+        deactivate_slot(self._u, self.params.n_stages, self.n_slots, j)
+
+    def _take_slot(self, used: np.ndarray) -> int:
+        """A free slot for a new obstacle: an inert one, else the weakest fading one
+        (its multipliers are the smallest), freed; -1 if every slot is in use."""
+        tab = self._obs
+        free = [j for j in range(self.n_slots) if not used[j] and tab[j, 6] < 0.5]
+        if free:
+            return free[0]
+        fading = [j for j in range(self.n_slots) if not used[j]]
+        if not fading:
+            return -1
+        jf = min(fading, key=lambda jj: tab[jj, 7])
+        self._free_slot(jf)
+        return jf
+
+    def _fill_slot(self, j: int, obstacles: Obstacles, q: int, new: bool, fade_rate: float,
+                   horizon: float, prm: np.ndarray) -> None:
+        """Write obstacle q into slot j; a new one fades in (at full weight at the very
+        first update) and its Z, mu start where its rows vanish."""
+        tab = self._obs
+        tab[j, 0] = float(obstacles.s_m[q])
+        tab[j, 1] = float(obstacles.y_m[q])
+        tab[j, 2] = float(obstacles.speed_s_mps[q])
+        tab[j, 3] = float(obstacles.speed_y_mps[q])
+        tab[j, 4] = max(float(obstacles.semi_a_m[q]), 1e-3)
+        tab[j, 5] = max(float(obstacles.semi_b_m[q]), 1e-3)
+        if new:
+            tab[j, 6] = 1.0
+            tab[j, 7] = 0.0 if self._initialised else 1.0
+        tab[j, 8] = fade_rate if tab[j, 7] < 1.0 else 0.0
+        if new and self._initialised:
+            activate_slot(self._u, self._xs, horizon, 0.0, self.w, prm, tab, j)
+
+    # ------------------------------------------------------------------- update
     def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,
                target_speed_mps: float, dt_s: float,
                lateral_reference_m: float = 0.0,
@@ -415,7 +471,7 @@ class CgmresOuter:
         # Jerk-limited target speed (the paper ramps Vtarget).
         if self._initialised:
             self._vt = self._ramp.update(float(target_speed_mps), max(t_s - self._t_prev, 0.0))
-        prm = pack_params(p, self._vt, yr, lateral_weight=cy)
+        prm = self._pack(self._vt, yr, lateral_weight=cy)
         horizon_prev = self.horizon_now(self._t_prev) if self._initialised else 0.0
         self._match_obstacles(t_s, obstacles, horizon_prev, prm)
         fallback = False
@@ -427,40 +483,7 @@ class CgmresOuter:
             self._stats[:] = 0.0
             self._final_residual(t_s, x0, prm)
         else:
-            dt = t_s - self._t_prev
-            if not dt > 0:
-                dt = dt_s
-            # yr at the start of the interval and its rate (restored to yr afterwards).
-            prm[_P_YREF] = self._yr
-            prm[_P_YREFD] = (yr - self._yr) / dt
-            prm[_P_CY] = self._cy
-            prm[_P_CYR] = (cy - self._cy) / dt
-            if self.time_each_subupdate:
-                n_sub = p.sub_updates
-                ddt = dt / n_sub
-                xa = self._x_prev.copy()
-                for k in range(n_sub):
-                    xb = self._x_prev + (k + 1) / n_sub * (x0 - self._x_prev)
-                    prm[_P_YREF] = self._yr + prm[_P_YREFD] * k * ddt
-                    prm[_P_CY] = self._cy + prm[_P_CYR] * k * ddt
-                    t0 = time.perf_counter()
-                    cgmres_updates(self._u, self._udot, xa, xb, self._t_prev + k * ddt, ddt, 1,
-                                   self._hz, self._t_prev + (k + 1) * ddt - t_s, prm,
-                                   self._obs, self.w, self.meta, self.coef, self._cfg,
-                                   self._work, self._xs, self._stats)
-                    self.subupdate_times_s.append(time.perf_counter() - t0)
-                    guards += int(self._stats[1])
-                    xa = xb
-            else:
-                cgmres_updates(self._u, self._udot, self._x_prev, x0, self._t_prev, dt,
-                               p.sub_updates, self._hz, 0.0, prm, self._obs, self.w,
-                               self.meta, self.coef, self._cfg, self._work, self._xs,
-                               self._stats)
-                guards = int(self._stats[1])
-            prm[_P_YREF] = yr
-            prm[_P_YREFD] = 0.0
-            prm[_P_CY] = cy
-            prm[_P_CYR] = 0.0
+            guards = self._continue(t_s, x0, dt_s, yr, cy, prm)
             e = float(self._stats[0])
             if self._stats[2] > 0.5 or not math.isfinite(e) or e > p.fallback_residual:
                 fallback = True
@@ -485,10 +508,51 @@ class CgmresOuter:
         plan.solve_s = time.perf_counter() - t_start
         return plan
 
+    def _continue(self, t_s: float, x0: np.ndarray, dt_s: float, yr: float, cy: float,
+                  prm: np.ndarray) -> int:
+        """``sub_updates`` continuation updates from the previous update to (t_s, x0);
+        yr and Cy move linearly from their previous values. Returns the guard count."""
+        p = self.params
+        dt = t_s - self._t_prev
+        if not dt > 0:
+            dt = dt_s
+        # yr at the start of the interval and its rate (restored to yr afterwards).
+        prm[_P_YREF] = self._yr
+        prm[_P_YREFD] = (yr - self._yr) / dt
+        prm[_P_CY] = self._cy
+        prm[_P_CYR] = (cy - self._cy) / dt
+        guards = 0
+        if self.time_each_subupdate:
+            n_sub = p.sub_updates
+            ddt = dt / n_sub
+            xa = self._x_prev.copy()
+            for k in range(n_sub):
+                xb = self._x_prev + (k + 1) / n_sub * (x0 - self._x_prev)
+                prm[_P_YREF] = self._yr + prm[_P_YREFD] * k * ddt
+                prm[_P_CY] = self._cy + prm[_P_CYR] * k * ddt
+                t0 = time.perf_counter()
+                cgmres_updates(self._u, self._udot, xa, xb, self._t_prev + k * ddt, ddt, 1,
+                               self._hz, self._t_prev + (k + 1) * ddt - t_s, prm,
+                               self._obs, self.w, self.meta, self.coef, self._cfg,
+                               self._work, self._xs, self._stats)
+                self.subupdate_times_s.append(time.perf_counter() - t0)
+                guards += int(self._stats[1])
+                xa = xb
+        else:
+            cgmres_updates(self._u, self._udot, self._x_prev, x0, self._t_prev, dt,
+                           p.sub_updates, self._hz, 0.0, prm, self._obs, self.w,
+                           self.meta, self.coef, self._cfg, self._work, self._xs,
+                           self._stats)
+            guards = int(self._stats[1])
+        prm[_P_YREF] = yr
+        prm[_P_YREFD] = 0.0
+        prm[_P_CY] = cy
+        prm[_P_CYR] = 0.0
+        return guards
+
     # ------------------------------------------------------------------ helpers
     def _final_residual(self, t_s: float, x0: np.ndarray, prm: np.ndarray) -> None:
-        n = self.params.n_unknowns
-        f = np.empty(n)
+        f = np.empty(self._u.shape[0])
         ps = np.empty((self.params.n_stages + 1, 12))
         ocp_residual(self._u, x0, self.horizon_now(t_s), 0.0, prm, self._obs, self.w, self.meta,
                      self.coef, self._xs, ps, f)
@@ -501,8 +565,7 @@ class CgmresOuter:
 
     def _plan(self, t_s: float) -> OuterPlan:
         p = self.params
-        m = p.stage_width
-        u = self._u.reshape(p.n_stages, m)
+        u = self._u.reshape(p.n_stages, self.stage_width)
         if p.cost == "J3":
             speeds = u[:, 0].copy()
             headings = self._xs[:-1, 2].copy()
@@ -531,8 +594,10 @@ class CgmresOuter:
     # Accessors for tests and diagnostics.
     @property
     def unknowns(self) -> np.ndarray:
+        """U (N (2 + 2K),), the solver's current unknowns (a view)."""
         return self._u
 
     @property
     def obstacle_slots(self) -> np.ndarray:
+        """The obstacle table (K, OBS_COLS) (a view)."""
         return self._obs

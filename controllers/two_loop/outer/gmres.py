@@ -81,7 +81,8 @@ def givens_column(hm: np.ndarray, cs: np.ndarray, sn: np.ndarray, g: np.ndarray,
     hm[j + 1, j] = 0.0
     g[j + 1] = -sn[j] * g[j]
     g[j] = cs[j] * g[j]
-    return abs(g[j + 1])
+    res: float = abs(g[j + 1])
+    return res
 
 
 @numba.njit(cache=True, fastmath=_FM)

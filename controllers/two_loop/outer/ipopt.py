@@ -104,11 +104,19 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from controllers.protocol import ConfigError, Obstacles
-from controllers.two_loop.outer.ocp import TargetSpeedRamp
+from controllers.behaviour.types import Obstacles
+from controllers.two_loop.outer.ocp import TargetSpeedRamp, stage_times
+from controllers.two_loop.outer.params import (
+    FORMULATIONS,
+    CgmresParams,
+    IpoptParams,
+    OcpParams,
+    ipopt_params,
+)
 from controllers.two_loop.outer.protocol import OuterPlan
 
-FORMULATIONS = ("barrier", "hard")
+__all__ = ["FORMULATIONS", "IpoptOuter", "PathLookup", "benchmark_ipopt", "benchmark_outer",
+           "compare_with_cgmres", "ellipse_values"]
 
 # Columns of the packed obstacle parameter block.
 _OBS_COLS = 6  # s_m, y_m, speed_s_mps, speed_y_mps, semi_a_m, semi_b_m
@@ -135,12 +143,12 @@ def _casadi() -> Any:
 
 
 # ---------------------------------------------------------------------------
-# Parameters taken from OuterParams (controllers.two_loop.outer.ocp)
+# Parameters taken from OcpParams (controllers.two_loop.outer.params)
 # ---------------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class J3Weights:
-    """The J3 cost weights of OuterParams, in the order of the NLP's weight parameter."""
+    """The J3 cost weights of OcpParams, in the order of the NLP's weight parameter."""
 
     c_y: float
     c_ydot: float
@@ -159,17 +167,15 @@ class J3Weights:
 _N_WEIGHTS = 8
 
 
-def weights_from_params(params: Any) -> J3Weights:
-    """The J3 weights of ``controllers.two_loop.outer.ocp.OuterParams`` (same names, same units)."""
+def weights_from_params(params: OcpParams) -> J3Weights:
+    """The J3 weights of an :class:`OcpParams` (same names, same units)."""
     return J3Weights(
         c_y=float(params.c_y), c_ydot=float(params.c_ydot), c_sdot=float(params.c_sdot),
         c_omega=float(params.c_thetadot), c_z=float(params.c_z), zeta=float(params.zeta),
         term_y=float(params.c_y_terminal), term_e=float(params.c_e_terminal))
 
 
-def _stage_times(params: Any) -> np.ndarray:
-    from controllers.two_loop.outer.ocp import stage_times
-
+def _stage_times(params: OcpParams) -> np.ndarray:
     tau = np.asarray(stage_times(params), dtype=np.float64)
     if tau.ndim != 1 or tau.shape[0] < 2 or not np.all(np.diff(tau) > 0) or tau[0] != 0.0:
         raise ValueError(f"stage_times(params) must be increasing from 0, got {tau!r}")
@@ -442,37 +448,37 @@ class UpdateStats:
 
 
 class IpoptOuter:
-    """OuterSolver: the J3 SPMM OCP solved by Ipopt every update (see the module doc).
+    """OuterPlanner: the J3 SPMM OCP solved by Ipopt every update (see the module doc).
 
     path: a ``controllers.path.frenet.FrenetPath`` (or anything with length_m, gamma, kappa).
-    params: ``controllers.two_loop.outer.ocp.OuterParams`` (weights, horizon and stages).
-    formulation: "barrier" (C/GMRES's slack + log barrier) or "hard" (c_j >= 0).
-    max_iter, tol: Ipopt's; acceptable_tol 1e2 * tol. max_wall_s: Ipopt's
-    max_wall_time (None: unlimited). omega_max_radps, v_max_factor,
-    v_cap_floor_mps: input bounds. brake_decel_mps2: deceleration of the
-    brake-along-lane fallback (default OuterParams.fallback_decel_mps2). warm_mu:
-    Ipopt's mu_init for warm-started solves. weights, stage_times_s: override
-    the ones derived from ``params`` (tests; e.g. C/GMRES's current grown horizon).
+    params: :class:`IpoptParams`: the OCP's weights, horizon and stages, and Ipopt's
+    formulation ("barrier": C/GMRES's slack + log barrier; "hard": c_j >= 0), max_iter
+    and tol (acceptable_tol 1e2 * tol). n_slots: the number of obstacle slots K of the
+    controller (the NLP is built for the K obstacles of each update; ``n_slots`` sets
+    :meth:`stage_unknowns`'s layout and what :meth:`prepare` builds by default).
+    max_wall_s: Ipopt's max_wall_time (None: unlimited). omega_max_radps,
+    v_max_factor, v_cap_floor_mps: input bounds. brake_decel_mps2: deceleration of
+    the brake-along-lane fallback (default ``params.fallback_decel_mps2``). warm_mu:
+    Ipopt's mu_init for warm-started solves. weights, stage_times_s: override the
+    ones derived from ``params`` (tests; e.g. C/GMRES's current grown horizon).
     """
 
-    def __init__(self, path: PathLike, params: Any, *, formulation: str = "barrier",
-                 max_iter: int = 100, tol: float = 1e-6, max_wall_s: float | None = None,
+    updates_per_period = 1  # one NLP solve per control period
+
+    def __init__(self, path: PathLike, params: IpoptParams, n_slots: int = 3, *,
+                 max_wall_s: float | None = None,
                  omega_max_radps: float = 0.5, v_max_factor: float = 1.5,
                  v_cap_floor_mps: float = 5.0, brake_decel_mps2: float | None = None,
                  warm_mu: float = 1e-6, path_grid_m: float = 1.0,
                  weights: J3Weights | None = None, stage_times_s: np.ndarray | None = None) -> None:
-        if formulation not in FORMULATIONS:
-            raise ConfigError("controller.formulation", f"one of {list(FORMULATIONS)}", formulation)
-        if not (isinstance(max_iter, int) and max_iter >= 1):
-            raise ConfigError("controller.max_iter", "an int >= 1", max_iter)
-        if not (isinstance(tol, int | float) and 0 < tol < 1):
-            raise ConfigError("controller.ipopt_tol", "a number in (0, 1)", tol)
-        cost = getattr(params, "cost", "J3")
-        if str(cost).upper() != "J3":
-            raise ConfigError("controller.cost", "J3 (the Ipopt baseline solves J3 only)", cost)
+        if not isinstance(params, IpoptParams):
+            raise TypeError(f"IpoptOuter needs IpoptParams, got {type(params).__name__}")
+        if not (isinstance(n_slots, int) and n_slots >= 0):
+            raise ValueError(f"n_slots must be an int >= 0, got {n_slots!r}")
         self.path = path
         self.params = params
-        self.formulation = formulation
+        self.n_slots = n_slots
+        self.formulation = params.formulation
         self.weights = weights if weights is not None else weights_from_params(params)
         tau = stage_times_s if stage_times_s is not None else _stage_times(params)
         self.tau = np.asarray(tau, dtype=np.float64)
@@ -482,12 +488,12 @@ class IpoptOuter:
         self.v_max_factor = float(v_max_factor)
         self.v_cap_floor = float(v_cap_floor_mps)
         self.brake_decel = float(brake_decel_mps2 if brake_decel_mps2 is not None
-                                 else getattr(params, "fallback_decel_mps2", 3.0))
+                                 else params.fallback_decel_mps2)
         self.lookup = path_lookup(path, path_grid_m)
         self._cold_opts: dict[str, Any] = {
-            "print_level": 0, "sb": "yes", "max_iter": int(max_iter), "tol": float(tol),
-            "acceptable_tol": 100.0 * float(tol), "acceptable_iter": 5,
-            "mu_strategy": "monotone",
+            "print_level": 0, "sb": "yes", "max_iter": int(params.max_iter),
+            "tol": float(params.tol), "acceptable_tol": 100.0 * float(params.tol),
+            "acceptable_iter": 5, "mu_strategy": "monotone",
         }
         if max_wall_s is not None:
             self._cold_opts["max_wall_time"] = float(max_wall_s)
@@ -513,12 +519,19 @@ class IpoptOuter:
         self._t_prev: float | None = None
         self._last_success_t: float | None = None
 
+    def horizon_growth(self, elapsed_s: float) -> float:
+        """1: the horizon is the full T from the first update (no growing horizon)."""
+        del elapsed_s
+        return 1.0
+
     # -- set-up -------------------------------------------------------------
 
-    def prepare(self, max_obstacles: int) -> float:
-        """Build the NLPs for K = 0..max_obstacles now (else lazily); returns build time [s]."""
+    def prepare(self, max_obstacles: int | None = None) -> float:
+        """Build the NLPs for K = 0..max_obstacles (default n_slots) now (else lazily);
+        returns the build time [s]."""
         t0 = time.perf_counter()
-        for k in range(max_obstacles + 1):
+        k_max = self.n_slots if max_obstacles is None else max_obstacles
+        for k in range(k_max + 1):
             for warm in (False, True):
                 self._nlp(k, warm)
         return time.perf_counter() - t0
@@ -542,6 +555,23 @@ class IpoptOuter:
         self.fallback_count = 0
         self.update_count = 0
         self.history.clear()
+
+    def restart(self, x0: np.ndarray, target_speed_mps: float,
+                target_accel_mps2: float = 0.0) -> None:
+        """Forget the previous solution (the next update is a cold start) but not the
+        run's counters; the target-speed ramp continues from ``target_speed_mps`` with
+        acceleration ``target_accel_mps2`` (as :meth:`CgmresOuter.restart`)."""
+        del x0
+        vt = float(target_speed_mps)
+        acc = float(target_accel_mps2)
+        self._prev = None
+        self._vt = vt if math.isfinite(vt) and vt > 0.0 else 0.0
+        self._vt_set = True
+        self._ramp.reset(self._vt)
+        if math.isfinite(acc):
+            self._ramp.ramp_accel_mps2 = acc
+        self._t_prev = None
+        self._last_success_t = None
 
     # -- one update ---------------------------------------------------------
 
@@ -635,13 +665,13 @@ class IpoptOuter:
         by dtau_i (the C/GMRES Hamiltonian carries mu per unit time). Stage 0 and slots
         beyond the obstacles of the last update get the trivial Z = 1, mu = 0 of
         ``controllers.two_loop.outer.ocp``. Shape (N * (2 + 2 n_slots),); n_slots defaults to
-        ``params.n_obstacles``.
+        the planner's own.
         """
         if self.formulation != "barrier":
             raise ValueError("stage_unknowns: only the barrier formulation has Z and mu")
         if self._prev is None:
             raise ValueError("stage_unknowns: no solution yet")
-        k_slots = int(self.params.n_obstacles if n_slots is None else n_slots)
+        k_slots = int(self.n_slots if n_slots is None else n_slots)
         sol = self._prev
         k = sol.obs.shape[0]
         if k > k_slots:
@@ -796,7 +826,8 @@ def ellipse_values(states: np.ndarray, tau: np.ndarray, obs: np.ndarray) -> np.n
     t = np.asarray(tau)[:, None]
     ds = s - (obs[None, :, 0] + obs[None, :, 2] * t)
     dy = y - (obs[None, :, 1] + obs[None, :, 3] * t)
-    return ds**2 / obs[None, :, 4] ** 2 + dy**2 / obs[None, :, 5] ** 2 - 1.0
+    out: np.ndarray = ds**2 / obs[None, :, 4] ** 2 + dy**2 / obs[None, :, 5] ** 2 - 1.0
+    return out
 
 
 def _interp_rows(t_new: np.ndarray, t_old: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -968,21 +999,17 @@ def _straight_frenet(length_m: float) -> PathLike:
     return FrenetPath.cached(np.array([[0.0, 0.0], [length_m, 0.0]]))
 
 
-def benchmark_ipopt(params: Any = None, *, formulation: str = "barrier",
-                    max_iter: int = 100, tol: float = 1e-6, **scenario: Any) -> dict[str, Any]:
+def benchmark_ipopt(params: IpoptParams | None = None, **scenario: Any) -> dict[str, Any]:
     """:func:`benchmark_outer` for :class:`IpoptOuter` (NLPs built before timing).
 
-    ``params`` defaults to ``controllers.two_loop.outer.ocp.OuterParams()``; ``scenario`` is
-    passed to :func:`benchmark_outer` (duration_s, period_s, obstacle_s_m, ...).
-    Adds Ipopt's iteration counts (``iter_*``) and its pure solver-call time
-    (``ipopt_p50_s``...). The path is a straight 4 km FrenetPath.
+    ``params`` defaults to ``IpoptParams()`` (its formulation, max_iter and tol are
+    the solver's); ``scenario`` is passed to :func:`benchmark_outer` (duration_s,
+    period_s, obstacle_s_m, ...). Adds Ipopt's iteration counts (``iter_*``) and its
+    pure solver-call time (``ipopt_p50_s``...). The path is a straight 4 km FrenetPath.
     """
-    if params is None:
-        from controllers.two_loop.outer.ocp import OuterParams
-
-        params = OuterParams()
-    outer = IpoptOuter(_straight_frenet(4000.0), params, formulation=formulation,
-                       max_iter=max_iter, tol=tol)
+    params = params if params is not None else IpoptParams()
+    formulation = params.formulation
+    outer = IpoptOuter(_straight_frenet(4000.0), params)
     outer.prepare(1)
     out = benchmark_outer(outer, iterations=lambda: outer.last_iterations, **scenario)
     ip = np.array([h.ipopt_s for h in outer.history])
@@ -997,26 +1024,26 @@ def benchmark_ipopt(params: Any = None, *, formulation: str = "barrier",
     return out
 
 
-def compare_with_cgmres(params: Any = None, *, repeats: int = 1,
-                        **scenario: Any) -> dict[str, Any]:
+def compare_with_cgmres(params: CgmresParams | None = None, *, repeats: int = 1,
+                        n_slots: int = 3, **scenario: Any) -> dict[str, Any]:
     """Fig. 15 in one process: C/GMRES, Ipopt (barrier), Ipopt (hard) on the same scenario.
 
+    ``params`` (default ``CgmresParams()``): C/GMRES's settings; both Ipopt runs solve
+    the same OCP (its :class:`OcpParams` part). ``n_slots``: C/GMRES's obstacle slots.
     Each solver runs once untimed first (numba compilation, NLP construction), then
     ``repeats`` timed runs whose samples are pooled. Returns per-solver summaries and
     the Ipopt/C-GMRES ratios of p50, p99 and variance.
     """
     from controllers.path.frenet import FrenetPath
     from controllers.two_loop.outer.cgmres import CgmresOuter
-    from controllers.two_loop.outer.ocp import OuterParams
 
-    if params is None:
-        params = OuterParams()
+    cg = params if params is not None else CgmresParams()
     path = FrenetPath.cached(np.array([[0.0, 0.0], [4000.0, 0.0]]))
     out: dict[str, Any] = {}
     makers: dict[str, Callable[[], Any]] = {
-        "cgmres": lambda: CgmresOuter(path, params),
-        "ipopt_barrier": lambda: IpoptOuter(path, params, formulation="barrier"),
-        "ipopt_hard": lambda: IpoptOuter(path, params, formulation="hard"),
+        "cgmres": lambda: CgmresOuter(path, cg, n_slots),
+        "ipopt_barrier": lambda: IpoptOuter(path, ipopt_params(cg, formulation="barrier")),
+        "ipopt_hard": lambda: IpoptOuter(path, ipopt_params(cg, formulation="hard")),
     }
     for name, make in makers.items():
         warm = make()

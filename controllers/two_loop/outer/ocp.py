@@ -58,14 +58,12 @@ Packed parameter vector (``pack_params``): see ``_P_*`` indices below.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
 
 import numba
 import numpy as np
 
 from controllers.path.frenet import FrenetPath, path_gamma
-
-COSTS = ("J1", "J2", "J3")
+from controllers.two_loop.outer.params import OcpParams
 
 
 class TargetSpeedRamp:
@@ -126,122 +124,12 @@ _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
 OBS_COLS = 9
 
 
-@dataclass(frozen=True)
-class OuterParams:
-    """Outer-loop (SPMM NLMPC) parameters, shared by C/GMRES and the Ipopt baseline.
-
-    cost: 'J1' | 'J2' | 'J3' (METHOD §3).
-    horizon_s: prediction horizon T [s]; n_stages: N; chebyshev: Chebyshev stage
-        spacing tau_i = (T/2)(1 - cos(i pi / N)) instead of uniform (uniform by
-        default: at N = 20 Chebyshev gave a larger E, max 1.2 vs 0.5 on the
-        straight-road obstacle case, for the same avoidance).
-    k_max: 12 by default: with row scaling, 12 Krylov vectors reach the same E as 16
-        (and as exact GMRES) on our cases; without it METHOD §9 needed 16.
-    n_obstacles: obstacle slots K in the problem (slack + multiplier each).
-    c_y [1/(m² s)], c_ydot [s/m²], c_sdot [s/m²], c_thetadot [s/rad²],
-        c_theta [1/(rad² s)] (J1), c_v [s/m²] (J1): running-cost weights.
-    c_z [1/s]: barrier weight; zeta [-]: barrier offset (ln(Z + zeta)).
-    c_y_terminal [1/m²], c_e_terminal [1/rad²]: terminal weights on y_N and e_N
-        (default: heading only; a terminal weight on y stiffened the horizon's end
-        and doubled E and the steering chatter when the obstacle entered it).
-    k_max: GMRES iterations per update; zeta_s [1/s]: continuation gain;
-    fd_step: forward-difference step h [s] (also the U-direction step);
-    sub_updates: continuation updates per control period.
-    horizon_growth_rate [1/s]: T(t) = T_f (1 - exp(-rate (t - t_init))), which makes
-        the t_init solution exact in closed form.
-    target_accel_mps2 / target_decel_mps2 / target_jerk_mps3: limits of the
-        target-speed ramp fed to the OCP (:class:`TargetSpeedRamp`; the paper ramps
-        Vtarget; a step would kick the continuation, an acceleration step is jerk).
-    z_guard: minimum Z + zeta kept by the guard after every Euler step.
-    row_scaling: C/GMRES works on D(U) F with D a diagonal estimate of F_U's
-        diagonal (same roots); E is always reported on the unscaled F.
-    obstacle_fade_s [s]: an obstacle's barrier weight ramps from 0 to Cz over this
-        time when it enters the problem, and back to 0 when it leaves (a step would
-        jump the costates and E; the fade enters F_t like the obstacle's motion).
-    fallback_residual: E above which (or non-finite) the solver is re-initialised
-        and the car brakes along the lane; fallback_decel_mps2, fallback_hold_s:
-        that braking plan's deceleration and duration.
-    """
-
-    cost: str = "J3"
-    horizon_s: float = 2.4
-    n_stages: int = 20
-    chebyshev: bool = False
-    n_obstacles: int = 3
-    c_y: float = 1.0
-    c_ydot: float = 1.0
-    c_sdot: float = 3.0
-    c_thetadot: float = 60.0
-    c_theta: float = 20.0
-    c_v: float = 1.0
-    c_z: float = 30.0
-    zeta: float = 0.2
-    c_y_terminal: float = 0.0
-    c_e_terminal: float = 2.0
-    k_max: int = 12
-    zeta_s: float = 50.0
-    fd_step: float = 1e-6
-    sub_updates: int = 3
-    horizon_growth_rate: float = 2.0
-    target_accel_mps2: float = 1.5
-    target_decel_mps2: float = 3.0
-    target_jerk_mps3: float = 2.0
-    z_guard: float = 0.05
-    obstacle_fade_s: float = 0.5
-    row_scaling: bool = True
-    fallback_residual: float = 50.0
-    fallback_decel_mps2: float = 3.0
-    fallback_hold_s: float = 1.0
-
-    def __post_init__(self) -> None:
-        if self.cost not in COSTS:
-            raise ValueError(f"OuterParams.cost must be one of {COSTS}, got {self.cost!r}")
-        for name in ("horizon_s", "c_z", "zeta", "zeta_s", "fd_step", "horizon_growth_rate",
-                     "target_accel_mps2", "target_decel_mps2", "target_jerk_mps3", "z_guard",
-                     "fallback_residual",
-                     "obstacle_fade_s",
-                     "fallback_decel_mps2"):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                    and v > 0):
-                raise ValueError(f"OuterParams.{name} must be a finite number > 0, got {v!r}")
-        for name in ("c_y", "c_ydot", "c_sdot", "c_thetadot", "c_theta", "c_v",
-                     "c_y_terminal", "c_e_terminal", "fallback_hold_s"):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                    and v >= 0):
-                raise ValueError(f"OuterParams.{name} must be a finite number >= 0, got {v!r}")
-        for name, lo in (("n_stages", 2), ("n_obstacles", 0), ("k_max", 1), ("sub_updates", 1)):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and not isinstance(v, bool) and v >= lo):
-                raise ValueError(f"OuterParams.{name} must be an int >= {lo}, got {v!r}")
-        if self.z_guard >= self.zeta:
-            raise ValueError("OuterParams.z_guard must be < zeta")
-        if self.cost == "J3" and self.c_thetadot <= 0:
-            raise ValueError("OuterParams.c_thetadot must be > 0 for J3 (H_omega is linear)")
-        if self.cost in ("J2", "J3") and (self.c_sdot <= 0 or self.c_ydot <= 0):
-            raise ValueError("OuterParams.c_sdot and c_ydot must be > 0 for J2/J3")
-        if self.cost == "J1" and (self.c_theta <= 0 or self.c_v <= 0):
-            raise ValueError("OuterParams.c_theta and c_v must be > 0 for J1")
-
-    @property
-    def cost_id(self) -> int:
-        return COSTS.index(self.cost) + 1
-
-    @property
-    def stage_width(self) -> int:
-        """Unknowns per stage m = 2 + 2K."""
-        return 2 + 2 * self.n_obstacles
-
-    @property
-    def n_unknowns(self) -> int:
-        return self.n_stages * self.stage_width
-
-    def as_dict(self) -> dict[str, object]:
-        return asdict(self)
+def stage_width(n_slots: int) -> int:
+    """Unknowns per stage m = 2 + 2K (two inputs, a slack and a multiplier per slot)."""
+    return 2 + 2 * n_slots
 
 
-def stage_fractions(params: OuterParams) -> np.ndarray:
+def stage_fractions(params: OcpParams) -> np.ndarray:
     """tau_i / T, shape (N+1,), from 0 to 1 (uniform or Chebyshev)."""
     i = np.arange(params.n_stages + 1, dtype=np.float64)
     if params.chebyshev:
@@ -252,21 +140,23 @@ def stage_fractions(params: OuterParams) -> np.ndarray:
     return w
 
 
-def stage_times(params: OuterParams, horizon_s: float | None = None) -> np.ndarray:
+def stage_times(params: OcpParams, horizon_s: float | None = None) -> np.ndarray:
     """Stage nodes tau_i [s], shape (N+1,), for the full (or a given) horizon."""
     return stage_fractions(params) * (params.horizon_s if horizon_s is None else horizon_s)
 
 
-def pack_params(params: OuterParams, target_speed_mps: float,
+def pack_params(params: OcpParams, target_speed_mps: float,
                 lateral_reference_m: float = 0.0, lateral_reference_rate_mps: float = 0.0,
                 lateral_weight: float | None = None, lateral_weight_rate: float = 0.0,
-                ) -> np.ndarray:
-    """Packed float vector for the compiled kernels (per-update data included).
+                row_scaling: bool = False) -> np.ndarray:
+    """Packed float vector (N_PACKED,) for the compiled kernels (per-update data included).
 
-    target_speed_mps: Vt; lateral_reference_m: yr in Cy (y - yr)² and CyT (y_N - yr)²;
-    lateral_weight: Cy of this update (None: params.c_y; a caller may schedule it);
-    the rates yr' and Cy' are used by :func:`controllers.two_loop.outer.cgmres.cgmres_updates`
-    to move yr and Cy across a control period (ignored by the residual itself).
+    target_speed_mps: Vt [m/s]; lateral_reference_m: yr [m] in Cy (y - yr)² and
+    CyT (y_N - yr)²; lateral_weight: Cy [1/(m² s)] of this update (None: params.c_y;
+    a caller may schedule it); the rates yr' [m/s] and Cy' [1/(m² s²)] are used by
+    :func:`controllers.two_loop.outer.cgmres.cgmres_updates` to move yr and Cy across a
+    control period (ignored by the residual itself); row_scaling: the residual returns
+    D(U) F (a C/GMRES device, see :func:`ocp_residual`).
     """
     out = np.zeros(N_PACKED)
     out[_P_COST] = params.cost_id
@@ -281,7 +171,7 @@ def pack_params(params: OuterParams, target_speed_mps: float,
     out[_P_CYT] = params.c_y_terminal
     out[_P_CET] = params.c_e_terminal
     out[_P_VT] = target_speed_mps
-    out[_P_SCALE] = 1.0 if params.row_scaling else 0.0
+    out[_P_SCALE] = 1.0 if row_scaling else 0.0
     out[_P_YREF] = lateral_reference_m
     out[_P_YREFD] = lateral_reference_rate_mps
     out[_P_CYR] = lateral_weight_rate
@@ -307,7 +197,7 @@ def obstacle_table(n_slots: int) -> np.ndarray:
 @numba.njit(cache=True, inline="always")
 def slot_weight(ob: np.ndarray, tshift: float) -> float:
     """Barrier weight factor clip(w + dw/dt tshift, 0, 1) of one obstacle row."""
-    wgt = ob[7] + ob[8] * tshift
+    wgt: float = ob[7] + ob[8] * tshift
     if wgt < 0.0:
         return 0.0
     if wgt > 1.0:
@@ -403,7 +293,7 @@ def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,
         cv = prm[_P_CV]
         a1 = ps
         a2 = py
-        hval = cy * ey * ey + cth * e * e + cv * (v - vt) ** 2
+        hval: float = cy * ey * ey + cth * e * e + cv * (v - vt) ** 2
         hs = -2.0 * cth * e * kap + a1 * f1_s + a2 * f2_s
         hy = 2.0 * cy * ey + a1 * f1_y
         hth = 0.0
@@ -486,7 +376,7 @@ def terminal_eval(x: np.ndarray, prm: np.ndarray, meta: np.ndarray, coef: np.nda
     mx_out[0] = 0.0
     mx_out[1] = 2.0 * cyt * y
     mx_out[2] = 0.0
-    val = cyt * y * y
+    val: float = cyt * y * y
     if cost == 3:
         cet = prm[_P_CET]
         g, kap, _ = path_gamma(meta, coef, x[0])
@@ -717,15 +607,21 @@ def deactivate_slot(uvec: np.ndarray, n: int, k_obs: int, j: int) -> None:
 class SpmmProblem:
     """Python-side view of the discretised OCP for one path (tests, baselines, tools).
 
-    Holds the packed tables; ``residual(U, x0, ...)`` returns F (N m,) and the
-    states (N+1, 3). Not used in the real-time loop (which calls the kernels).
+    Holds the path tables and stage fractions; the number of slots K is that of the
+    obstacle table ``obs`` (K, OBS_COLS) each call gets, U has N (2 + 2K) entries.
+    ``residual(U, x0, ...)`` returns F (N m,), the states and costates (N+1, 3). Not
+    used in the real-time loop (which calls the kernels).
     """
 
-    def __init__(self, path: FrenetPath, params: OuterParams) -> None:
+    def __init__(self, path: FrenetPath, params: OcpParams) -> None:
         self.path = path
         self.params = params
         self.meta, self.coef, _ = path.tables()
         self.w = stage_fractions(params)
+
+    def n_unknowns(self, n_slots: int) -> int:
+        """N (2 + 2K): the length of U with K obstacle slots."""
+        return self.params.n_stages * stage_width(n_slots)
 
     def residual(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray, target_speed: float,
                  horizon: float | None = None, tshift: float = 0.0, scaled: bool = False,
@@ -733,11 +629,10 @@ class SpmmProblem:
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(F, states (N+1, 3), costates (N+1, 3)); F unscaled unless ``scaled``."""
         n = self.params.n_stages
-        prm = pack_params(self.params, target_speed, lateral_reference_m)
-        prm[_P_SCALE] = 1.0 if scaled else 0.0
+        prm = pack_params(self.params, target_speed, lateral_reference_m, row_scaling=scaled)
         xs = np.empty((n + 1, 3))
         ps = np.empty((n + 1, 12))
-        f = np.empty(self.params.n_unknowns)
+        f = np.empty(self.n_unknowns(obs.shape[0]))
         ocp_residual(np.ascontiguousarray(uvec, dtype=np.float64),
                      np.asarray(x0, dtype=np.float64), float(horizon or self.params.horizon_s),
                      float(tshift), prm, obs, self.w, self.meta, self.coef, xs, ps, f)
@@ -746,6 +641,7 @@ class SpmmProblem:
     def objective(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray, target_speed: float,
                   horizon: float | None = None, tshift: float = 0.0,
                   with_multipliers: bool = False, lateral_reference_m: float = 0.0) -> float:
+        """The discrete objective (reduced Lagrangian with ``with_multipliers``)."""
         return float(ocp_objective(np.ascontiguousarray(uvec, dtype=np.float64),
                                    np.asarray(x0, dtype=np.float64),
                                    float(horizon or self.params.horizon_s), float(tshift),
@@ -755,7 +651,8 @@ class SpmmProblem:
 
     def initial_guess(self, x0: np.ndarray, obs: np.ndarray, target_speed: float,
                       tshift: float = 0.0, lateral_reference_m: float = 0.0) -> np.ndarray:
-        u = np.empty(self.params.n_unknowns)
+        """The exact zero-horizon solution (:func:`stage_init`), U of length N (2 + 2K)."""
+        u = np.empty(self.n_unknowns(obs.shape[0]))
         stage_init(np.asarray(x0, dtype=np.float64), float(tshift),
                    pack_params(self.params, target_speed, lateral_reference_m), obs,
                    self.meta, self.coef,

@@ -1,25 +1,27 @@
-"""The outer loop's role (METHOD.md §1, §5): a planner on the SPMM in the Frenet frame.
+"""The outer loop's role (docs/method.md §1, §5): a planner on the SPMM in the Frenet frame.
 
-C/GMRES (``controllers.two_loop.outer.cgmres``) and the Ipopt baseline
-(``controllers.two_loop.outer.ipopt``) both implement :class:`OuterSolver`, so the
-two-loop controller can swap one for the other on the same scenarios.
+C/GMRES (:class:`controllers.two_loop.outer.cgmres.CgmresOuter`) and the Ipopt baseline
+(:class:`controllers.two_loop.outer.ipopt.IpoptOuter`) both implement
+:class:`OuterPlanner`, so the two-loop controller runs either on the same scenarios.
 
-Frenet state (augmented model (36), used with J3): x = [s_m, y_m, theta_rad]
-where theta is the world heading of the SPMM velocity vector (CCW from +X,
-unwrapped consistently with the path's tangent angle gamma(s)). Inputs:
-u = [V_mps, omega_radps] (J3), plus one slack Z_j per obstacle slot.
-For J1/J2 (model (10)) the state is [s_m, y_m] and the inputs [theta_rad, V_mps];
-plans are still reported with three state columns, theta taken from the input.
+Frenet state (augmented model (36), used with J3): x = [s_m, y_m, theta_rad] where
+theta is the world heading of the SPMM velocity vector (CCW from +X, unwrapped
+consistently with the path's tangent angle gamma(s)). Inputs: u = [V_mps,
+omega_radps] (J3), plus one slack Z_j per obstacle slot. For J1/J2 (model (10)) the
+state is [s_m, y_m] and the inputs [theta_rad, V_mps]; plans are still reported with
+three state columns, theta taken from the input.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 
-from controllers.protocol import Obstacles
+from controllers.behaviour.types import Obstacles
+from controllers.path.frenet import FrenetPath
 
 
 @dataclass
@@ -45,11 +47,31 @@ class OuterPlan:
     solve_s: float
 
 
-class OuterSolver(Protocol):
-    """reset once per run; update every outer period with the measured Frenet state
-    (and the lateral reference yr the plan should settle on)."""
+class OuterPlanner(Protocol):
+    """``reset`` once per run, ``update`` every control period with the measured Frenet
+    state x0 (3,); ``restart`` re-initialises mid-run (after a launch hand-over).
 
-    def reset(self, x0: np.ndarray, target_speed_mps: float) -> None: ...
+    updates_per_period: solver updates one ``update`` call runs (diagnostics);
+    horizon_growth(elapsed_s): relative length in [0, 1] of the planner's horizon
+    ``elapsed_s`` after a start (1 for a planner whose horizon is full at once).
+    """
+
+    @property
+    def updates_per_period(self) -> int: ...
+
+    def horizon_growth(self, elapsed_s: float) -> float: ...
+
+    def reset(self, x0: np.ndarray, target_speed_mps: float) -> None:
+        """Forget the run; the next update starts afresh at its state, its OCP target
+        speed ramping from ``target_speed_mps``."""
+        ...
+
+    def restart(self, x0: np.ndarray, target_speed_mps: float,
+                target_accel_mps2: float = 0.0) -> None:
+        """Start afresh at the next update, keeping the run's counters; the OCP's
+        target-speed ramp continues from ``target_speed_mps`` [m/s] with acceleration
+        ``target_accel_mps2`` [m/s²] (no step in the planned speed's rate)."""
+        ...
 
     def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,
                target_speed_mps: float, dt_s: float,
@@ -57,7 +79,11 @@ class OuterSolver(Protocol):
                lateral_weight: float | None = None) -> OuterPlan:
         """lateral_reference_m: yr [m, left +] of the running cost Cy (y - yr)² (and of
         the terminal CyT (y_N - yr)²), constant over the horizon; 0 keeps the paper's
-        Cy y². lateral_weight: Cy [1/(m² s)] of this update (None: OuterParams.c_y).
-        Callers pass smooth signals (TwoLoopController shapes the runner's steps): a
-        jump in yr or Cy is a jump in the optimality residual."""
+        Cy y². lateral_weight: Cy [1/(m² s)] of this update (None: the OCP's c_y).
+        Callers pass smooth signals (the lateral-reference shaper smooths the
+        behaviour's steps): a jump in yr or Cy is a jump in the optimality residual."""
         ...
+
+
+# Builds a run's planner once the path is known: (path, number of obstacle slots K).
+PlannerFactory = Callable[[FrenetPath, int], OuterPlanner]

@@ -1,0 +1,43 @@
+"""Per-step diagnostics of the two-loop controller (one trace column per field)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from controllers.protocol import StepDiagnostics
+
+
+@dataclass(frozen=True, slots=True)
+class TwoLoopDiagnostics(StepDiagnostics):
+    """What :meth:`TwoLoopController.step` reports every period, beyond the common
+    health and timing (outer_s: projection, shaping, launch and outer loop; inner_s:
+    inner loop and command; residual: E, 0 in launch mode; fallback; guard_fired).
+
+    steer_outer_rad, torque_outer_nm: conversion (13)(14) with feed-forward [rad, N m];
+    steer_corr_rad, torque_corr_nm: preview corrections (38)(39) [rad, N m];
+    planned_speed_mps: the plan's V at stage 0 [m/s];
+    preview_err_t_m, preview_err_n_m: preview error PE along the path's tangent and
+        normal [m] (0 in launch mode);
+    outer_updates: planner updates this period (0 in launch mode) [-];
+    lateral_ref_m, lateral_ref_rate_mps: the shaped reference yr and yr' [m, m/s];
+    lateral_weight: Cy of this period [1/(m² s)];
+    launch: the launch law drives; launch_weight: its share of the command [-] (1 in
+        launch, easing to 0 after the hand-over); launch_ramp_speed_mps: the launch
+        ramp's speed [m/s].
+    """
+
+    steer_outer_rad: float = math.nan
+    steer_corr_rad: float = math.nan
+    torque_outer_nm: float = math.nan
+    torque_corr_nm: float = math.nan
+    planned_speed_mps: float = math.nan
+    preview_err_t_m: float = math.nan
+    preview_err_n_m: float = math.nan
+    outer_updates: int = 0
+    lateral_ref_m: float = math.nan
+    lateral_ref_rate_mps: float = math.nan
+    lateral_weight: float = math.nan
+    launch: bool = False
+    launch_weight: float = math.nan
+    launch_ramp_speed_mps: float = math.nan

@@ -1,0 +1,148 @@
+"""Lateral-reference shaper: the behaviour's stepped reference -> the OCP's smooth yr, Cy.
+
+The behaviour layer hands over r_raw(t) [m, left +], a step to the neighbour lane's
+centre while passing and back to 0 afterwards. C/GMRES tracks a moving optimum, so a
+step in a parameter is a step in its residual; every control period the shaper moves
+
+1. a rate limiter r toward r_raw by at most rate h per sub-step, with
+   rate = min(``rate_mps``, V ``heading_rad``) times the planner's relative horizon
+   length (V the measured speed: a slow car cannot follow the rate with a sensible
+   heading; a growing C/GMRES horizon is short at first);
+2. a critically damped second-order filter (time constant T_f = ``filter_s``):
+   yr'' = (r - yr)/T_f² - 2 yr'/T_f, integrated by semi-implicit Euler in sub-steps
+   h <= T_f/10 (T_f = 0: yr = r, yr' = dr/dt).
+
+yr, yr', yr'' are continuous; a change of r_raw mid-way redirects the ramp. yr starts
+at the measured offset, at rest. A non-finite r_raw holds the previous one.
+
+Weight schedule: Cy = c_y + (``c_y_engaged`` - c_y) (1 - cos(pi phi))/2 (C¹ in time),
+phi in [0, 1] ramping linearly over ``weight_time_s`` toward 1 while a reference is
+engaged and toward 0 otherwise. Engaged: from r_raw != 0 until, with r_raw back at 0,
+both yr and the car are on it (within ``_YR_SETTLED_M`` and ``_CAR_SETTLED_M``).
+Why and how the values were chosen: docs/two_loop.md "Lateral reference".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from controllers.params import check_leaves, check_range, param
+
+_YR_SETTLED_M = 0.05  # yr back on r_raw = 0 within this [m] ...
+_CAR_SETTLED_M = 0.1  # ... and the car within this [m]: the reference disengages
+
+
+@dataclass(frozen=True)
+class LateralRefParams:
+    """How the behaviour's lateral reference is smoothed before it reaches the OCP."""
+
+    rate_mps: float = param(1.5, "m/s", "rate limit of the reference's ramp")
+    filter_s: float = param(0.2, "s", "time constant of the critically damped filter (0: off)")
+    heading_rad: float = param(0.1, "rad", "the rate limit is at most V times this")
+    c_y_engaged: float = param(20.0, "1/(m² s)", "Cy while a lateral reference is engaged")
+    weight_time_s: float = param(1.0, "s", "blend time of Cy from/to the OCP's c_y")
+
+    def __post_init__(self) -> None:
+        check_leaves(self)
+        for name in ("rate_mps", "heading_rad", "weight_time_s"):
+            check_range(self, name, gt=0.0)
+        for name in ("filter_s", "c_y_engaged"):
+            check_range(self, name, ge=0.0)
+
+
+class LateralReferenceShaper:
+    """State: r_raw held, ramp r, yr, yr' [m, m/s], weight blend phi, engaged flag.
+
+    ``update`` once per control period; ``reference_m``, ``rate_mps`` and
+    :meth:`weight` read the current yr, yr' and Cy.
+    """
+
+    def __init__(self, params: LateralRefParams) -> None:
+        self.params = params
+        self.reset()
+
+    def reset(self) -> None:
+        """Not started: the next ``update`` starts at the measured offset."""
+        self._raw = math.nan
+        self._ramp = math.nan
+        self._yr = math.nan
+        self._yr_rate = math.nan
+        self._phi = math.nan
+        self._engaged = math.nan
+
+    @property
+    def raw_m(self) -> float:
+        """The reference being approached (r_raw, the last finite one; NaN before)."""
+        return self._raw
+
+    @property
+    def reference_m(self) -> float:
+        """yr [m]."""
+        return self._yr
+
+    @property
+    def rate_mps(self) -> float:
+        """yr' [m/s]."""
+        return self._yr_rate
+
+    def weight(self, c_y: float) -> float:
+        """Cy [1/(m² s)] now, blending from the OCP's ``c_y`` to ``c_y_engaged``."""
+        blend = 0.5 * (1.0 - math.cos(math.pi * self._phi))  # C¹ in time
+        return c_y + (self.params.c_y_engaged - c_y) * blend
+
+    def restart(self, y_now_m: float) -> None:
+        """Ramp and yr restart at the car's offset y_now_m, at rest (launch hand-over)."""
+        self._ramp = self._yr = float(y_now_m)
+        self._yr_rate = 0.0
+
+    def update(self, raw_m: float, dt_s: float | None, y_now_m: float, speed_mps: float,
+               rate_scale: float) -> float:
+        """Advance by dt_s (None: first step, start at y_now_m at rest); returns yr [m].
+
+        raw_m: the behaviour's reference; y_now_m: the car's lateral offset [m];
+        speed_mps: its speed; rate_scale: the planner's relative horizon length in [0, 1].
+        """
+        if math.isfinite(raw_m):
+            self._raw = raw_m
+        elif not math.isfinite(self._raw):
+            self._raw = 0.0
+        y_ok = y_now_m if math.isfinite(y_now_m) else 0.0
+        if dt_s is None or not math.isfinite(self._yr):
+            self._ramp = self._yr = y_ok
+            self._yr_rate = 0.0
+            self._engaged = 1.0 if self._raw != 0.0 else 0.0
+            self._phi = self._engaged
+            return self._yr
+        self._update_weight(dt_s, y_ok)
+        self._advance(dt_s, speed_mps, rate_scale)
+        return self._yr
+
+    def _update_weight(self, dt_s: float, y_ok: float) -> None:
+        # Engaged from a non-zero reference until both yr and the car are back on it.
+        engaged = self._raw != 0.0 or (self._engaged > 0.5 and (
+            abs(self._yr - self._raw) > _YR_SETTLED_M or abs(y_ok - self._raw) > _CAR_SETTLED_M))
+        self._engaged = 1.0 if engaged else 0.0
+        step = dt_s / self.params.weight_time_s
+        self._phi = min(self._phi + step, 1.0) if engaged else max(self._phi - step, 0.0)
+
+    def _advance(self, dt_s: float, speed_mps: float, rate_scale: float) -> None:
+        p = self.params
+        tf = p.filter_s
+        n_sub = 1 if tf <= 0.0 else max(1, math.ceil(dt_s / (0.1 * tf)))
+        h = dt_s / n_sub
+        v = speed_mps if math.isfinite(speed_mps) and speed_mps > 0.0 else 0.0
+        rate = min(p.rate_mps, v * p.heading_rad)
+        rate *= rate_scale
+        max_step = rate * h
+        r, yr, yd = self._ramp, self._yr, self._yr_rate
+        for _ in range(n_sub):
+            r_prev = r
+            r += min(max(self._raw - r, -max_step), max_step)
+            if tf <= 0.0:
+                yd = (r - r_prev) / h
+                yr = r
+            else:
+                yd += h * ((r - yr) / (tf * tf) - 2.0 * yd / tf)
+                yr += h * yd
+        self._ramp, self._yr, self._yr_rate = r, yr, yd
