@@ -1,1 +1,1 @@
-"""path."""
+"""The reference path and its Frenet frame (docs/method.md §2)."""

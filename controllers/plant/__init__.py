@@ -1,1 +1,1 @@
-"""plant."""
+"""The single-track vehicle model: the plant and the preview's model (docs/method.md §6)."""

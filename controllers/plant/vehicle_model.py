@@ -1,4 +1,4 @@
-"""Single-track vehicle model (STVM), METHOD.md §6: the ego's plant and the inner loop's model.
+"""Single-track vehicle model (STVM), docs/method.md §6: the ego's plant and the inner loop's model.
 
 State vector (shape (6,)), SI units:
     x = [X_m, Y_m, psi_rad, u_mps, v_mps, r_radps]
@@ -31,7 +31,7 @@ STATE_NAMES = ("X_m", "Y_m", "psi_rad", "u_mps", "v_mps", "r_radps")
 
 @dataclass(frozen=True)
 class VehicleParams:
-    """Mid-size passenger car (METHOD.md §7). Every field carries its unit."""
+    """Mid-size passenger car (docs/method.md §6). Every field carries its unit."""
 
     mass_kg: float = 1500.0
     yaw_inertia_kgm2: float = 2500.0

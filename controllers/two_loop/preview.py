@@ -1,4 +1,4 @@
-"""Inner loop: conversion of the SPMM plan to STVM inputs + preview corrector (METHOD.md §1).
+"""Inner loop kernels: SPMM plan -> STVM inputs, and the preview corrector (docs/method.md §7).
 
 Conversion (paper (13)(14), with documented additions):
 
@@ -11,12 +11,12 @@ Conversion (paper (13)(14), with documented additions):
   for J3 (theta is a state starting at theta_a), so (13) is evaluated a little
   ahead on the plan; theta*(tau) is the plan's piecewise-linear heading. The
   measured heading is extrapolated by the yaw rate r over the same time so that
-  the path's own heading advance is not counted twice (it is in delta_ff); without
-  this the car held a 0.17 m offset to the inside of an R = 400 m curve.
+  the path's own heading advance is not counted twice (it is in delta_ff; see
+  docs/two_loop.md §5).
 * delta_ff (``feedforward``): steady-state cornering steer for the planned heading
   rate omega*: delta_ff = (L + K_us V*²) omega* / V*, K_us the understeer gradient
-  (kinematic (a + b) omega*/V* of METHOD §1 plus the understeer of the linear-tyre
-  STVM, which at 25 m/s on R = 400 m is 0.004 rad next to L/R = 0.007 rad).
+  (the kinematic (a + b) omega*/V* plus the understeer of the linear-tyre STVM,
+  comparable in size on highway curves).
 * T_ff (``feedforward``): torque for the planned acceleration, m R dV*/dtau
   (both axles driven, F_x total = T / R).
 

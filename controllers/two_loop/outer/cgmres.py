@@ -1,4 +1,4 @@
-"""C/GMRES outer loop (METHOD.md §5) on the SPMM OCP of ``controllers.two_loop.outer.ocp``.
+"""C/GMRES outer loop (docs/method.md §5) on the SPMM OCP of ``controllers.two_loop.outer.ocp``.
 
 One control period runs ``sub_updates`` continuation updates inside a single
 compiled call (:func:`cgmres_updates`). Between the previous and the current
@@ -10,7 +10,7 @@ k_max Arnoldi vectors) + O(k_max² n) Gram-Schmidt; no allocation proportional t
 the iteration count, no data-dependent loop length. Afterwards:
 
 * guard: Z_ij + zeta >= z_guard for every active slot (once Z + zeta crosses zero
-  the barrier gradient flips sign and pulls the plan into the obstacle, METHOD §9);
+  the barrier gradient flips sign and pulls the plan into the obstacle, docs/method.md §9);
   each clamp is counted (``guard_fired``).
 * E = ||F(U, x0, t)||_inf at the current state (the paper's (29)).
 * fallback: E > fallback_residual or anything non-finite => re-initialise (growing
@@ -29,8 +29,8 @@ from 0 to Cz over ``obstacle_fade_s`` (Z = sqrt(c) on the current plan and mu = 
 make its rows vanish at that moment, so F stays continuous), and an obstacle that
 left fades out the same way (kept at its constant-velocity prediction) before its
 slot becomes inert (trivial rows). Switching obstacles in and out at full weight
-made E jump (to ~19 with three cars) on every change, because the multipliers'
-mu dc/dx terms shift all costates at once. At the very first update obstacles
+makes E jump on every change, because the multipliers' mu dc/dx terms shift all
+costates at once (docs/two_loop.md §4). At the very first update obstacles
 enter at full weight (the closed-form initialisation handles them exactly).
 """
 

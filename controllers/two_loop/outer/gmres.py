@@ -1,4 +1,4 @@
-"""Generic pieces of C/GMRES (Ohtsuka 2004, METHOD.md §5).
+"""Generic pieces of C/GMRES (Ohtsuka 2004, docs/method.md §5).
 
 Continuation: choose U' so that dF/dt = -zeta_s F along the trajectory,
 

@@ -1,6 +1,6 @@
-"""Ipopt NMPC outer loop: the C/GMRES problem (METHOD.md §2-5) solved by an iterative NLP solver.
+"""Ipopt outer loop: the C/GMRES problem (docs/method.md §2-§5) solved by an NLP solver.
 
-This is the comparison baseline of METHOD.md §8 result 3: the *same* Euler-discretised
+This is the comparison baseline of docs/method.md §8, result 3: the *same* Euler-discretised
 J3 problem as :class:`controllers.two_loop.outer.cgmres.CgmresOuter`, solved to convergence by
 Ipopt (through CasADi) at every outer update, warm-started from the previous
 solution shifted by the elapsed time (primal *and* dual).
@@ -17,18 +17,18 @@ with ``dtau_i = diff(stage_times(params))`` (uniform or Chebyshev, as C/GMRES), 
 
     J = sum_i L(x_i, u_i, Z_i, tau_i) dtau_i + m(x_N)
     L = Cy (y - yr)^2 + Cyd f2^2 + Csd (f1 - Vt)^2 + Cwd omega^2 - Cz sum_j ln(Z_ij + zeta)
-    m = CyT (y_N - yr)^2 + CeT (theta_N - gamma(s_N))^2   (spmm_ocp's terminal cost)
+    m = CyT (y_N - yr)^2 + CeT (theta_N - gamma(s_N))^2   (the OCP's terminal cost)
 
 yr: the lateral reference of the update (``update(..., lateral_reference_m=)``), an NLP
 parameter constant over the horizon, as in C/GMRES (0: the paper's Cy y^2); Cy may be
 overridden per update (``lateral_weight=``), also an NLP parameter.
 
-with the weights of ``controllers.two_loop.outer.ocp.OuterParams`` (c_y, c_ydot, c_sdot,
-c_thetadot, c_z, zeta, c_y_terminal, c_e_terminal). Differences from CgmresOuter,
+with the weights of :class:`controllers.two_loop.outer.params.OcpParams` (c_y, c_ydot,
+c_sdot, c_thetadot, c_z, zeta, c_y_terminal, c_e_terminal). Differences from CgmresOuter,
 all outside the discretised OCP: the horizon is the full T of ``stage_times(params)``
 from the first update (Ipopt needs no growing horizon to start), and the K obstacles
 of the update are the K constraints (no inert empty slots). Like CgmresOuter, the
-target speed fed to the OCP is rate-limited (OuterParams.target_accel_mps2 /
+target speed fed to the OCP is rate-limited (OcpParams.target_accel_mps2 /
 target_decel_mps2, starting from the speed given to ``reset``).
 
 Obstacle j (ellipse (42), constant-velocity prediction over the horizon)::
@@ -37,7 +37,7 @@ Obstacle j (ellipse (42), constant-velocity prediction over the horizon)::
 
 Two formulations (``formulation=``):
 
-* ``"barrier"`` (default): the C/GMRES form (b) of §4: slack Z_ij per stage i = 1..N-1,
+* ``"barrier"`` (default): the C/GMRES form of docs/method.md §4: slack Z_ij per stage i = 1..N-1,
   equality ``c_j(x_i, tau_i) - Z_ij^2 = 0`` and the barrier ``-Cz ln(Z_ij + zeta)`` in L.
   The stage-0 constraint cannot change the solution (x_0 is measured), so, like
   C/GMRES, it is left out. Z_ij >= 0 is imposed as a bound (Z -> -Z leaves the
@@ -48,12 +48,10 @@ Two formulations (``formulation=``):
 * ``"hard"``: the paper's Ipopt baseline: no slack, no barrier, the inequality
   ``c_j(x_i, tau_i) >= 0`` at the nodes i = 1..N (the terminal node included, a
   choice: nothing then prefers ending a plan inside the ellipse). Its plans ride on
-  the ellipse boundary. Observed (tests, benchmarks): when the ego follows its plan
-  exactly it deadlocks at the boundary (METHOD §9: x_1 = x_0 + V_0 dtau_0 (cos e_0,
-  sin e_0) with e_0 measured, so once x_0 touches the ellipse heading into it only
-  V_0 ~ 0 is feasible); on the STVM plant, tracking error takes the CG slightly
-  inside, the NLP becomes locally infeasible (fallbacks) and, with the lateral
-  offset eating into the pass-side margin, the boxes can touch.
+  the ellipse boundary: when the ego follows its plan exactly it deadlocks there
+  (docs/method.md §9: x_1 = x_0 + V_0 dtau_0 (cos e_0, sin e_0) with e_0 measured, so
+  once x_0 touches the ellipse heading into it only V_0 ~ 0 is feasible); on the
+  plant see docs/two_loop.md §8.
 
 Decision variables: V_i, omega_i (i = 0..N-1), Z_ij (barrier), and the nodes
 x_1..x_N (multiple shooting, the Euler steps as equality constraints; ``s`` is
@@ -68,10 +66,8 @@ re-expression of its C^2 quintic pieces, kappa the exact derivative). The NLP is
 therefore built once per (path, N, K, formulation) and cached at module level
 (K = number of obstacles in the problem, built lazily the first time K obstacles
 are seen, or up front with :meth:`IpoptOuter.prepare`); everything that changes
-per step (x_0, Vt, dtau, the obstacles, the cost weights) is an NLP parameter. The
-alternative -- a parametric interpolant over a moving window, making the NLP
-path-independent -- was measured at ~12x the evaluation cost in CasADi 3.8 and not
-exact; a cubic interpolant of sampled gamma/kappa left kappa errors ~1e-5 1/m.
+per step (x_0, Vt, dtau, the obstacles, the cost weights) is an NLP parameter
+(why not a path-independent NLP: docs/two_loop.md §8).
 
 Reported quantities
 -------------------
@@ -79,13 +75,13 @@ Reported quantities
   iterate (from ``solver.stats()['iterations']``; inf_du is Ipopt's *scaled* dual
   infeasibility, inf_pr the unscaled max constraint violation). It is not the
   dimensionless E = ||F||inf of C/GMRES, but it is the analogous KKT error
-  (tests check that Ipopt's solutions zero spmm_ocp's F to < 1e-6). ``inf`` if
+  (tests check that Ipopt's solutions zero the OCP's F to < 1e-6). ``inf`` if
   Ipopt stopped before its first iterate (never NaN).
 * ``fallback``: Ipopt did not report success (``stats()['success']`` False: max_iter,
   max_wall_time, infeasibility, restoration failure, ...) or returned non-finite
   values. The plan is then the last successful solution shifted to now and
   re-rolled from the measured state (while it is younger than half the horizon),
-  else a brake-along-the-lane plan (OuterParams.fallback_decel_mps2).
+  else a brake-along-the-lane plan (OcpParams.fallback_decel_mps2).
   ``fallback_count`` counts them. The next solve is warm-started from that plan.
 * ``solve_s``: wall time of the whole update (warm-start shift, Ipopt call, plan
   extraction), ``time.perf_counter``. Building the NLP (once per K) is excluded and

@@ -1,4 +1,4 @@
-"""The outer loop's optimal-control problem: SPMM in the Frenet frame (METHOD.md §2-§5).
+"""The outer loop's optimal-control problem: SPMM in the Frenet frame (docs/method.md §2-§5).
 
 Discretised problem (Euler, stage nodes tau_0 = 0 < tau_1 < ... < tau_N = T):
 
@@ -28,7 +28,7 @@ Terminal cost (not in the paper; a small documented addition that damps the
 free end of the horizon): m = CyT (y_N - yr)² + CeT e_N² for J3, m = CyT (y_N - yr)²
 for J1/J2.
 
-Obstacle j (ellipse, slack form (b) of METHOD §4):
+Obstacle j (ellipse, slack form of docs/method.md §4):
     c_j = (s - s_j - v_sj tau)²/A² + (y - y_j - v_yj tau)²/B² - 1,   c_j - Z_j² = 0
 
 Hamiltonian of stage i: H = L + sum_j mu_j (c_j - Z_j²) + p_{i+1}·f. With
@@ -48,7 +48,7 @@ gradient of the discrete Lagrangian divided by dtau_i (so F = 0 is its KKT syste
 
 Per-stage unknowns (m = 2 + 2K): [u_a, u_b, Z_1..Z_K, mu_1..mu_K] where (u_a, u_b) =
 (theta, V) for J1/J2 and (V, omega) for J3. Stage 0's constraint rows and empty
-obstacle slots get trivial rows Z - 1 = 0, mu = 0 (METHOD §9: x_0 is measured, so
+obstacle slots get trivial rows Z - 1 = 0, mu = 0 (docs/method.md §9: x_0 is measured, so
 its constraint cannot change the solution; this keeps F defined when the measured
 state touches an ellipse, and makes empty slots inert).
 
@@ -399,9 +399,9 @@ def ocp_residual(uvec: np.ndarray, x0: np.ndarray, horizon: float, tshift: float
     ``ps`` must have N+1 rows and at least 12 columns: columns 3.. hold the stage
     geometry of the forward pass, reused by the backward pass.
 
-    Row scaling (packed flag, ``OuterParams.row_scaling``): F is returned as D(U) F,
+    Row scaling (packed flag, ``CgmresParams.row_scaling``): F is returned as D(U) F,
     every row divided by an estimate of its diagonal Jacobian entry (same roots), so
-    that the Krylov solver sees rows of comparable size (METHOD §9: the slack rows
+    that the Krylov solver sees rows of comparable size (docs/method.md §9: the slack rows
     make F_U ill-conditioned): H_V / (2 Csd), H_omega / (2 Cthd) (J3); H_theta /
     (2 Cyd V²), H_V / (2 Csd) (J2); H_theta / (2 Ctheta), H_V / (2 CV) (J1);
     H_Z / (Cz_j/(Z + zeta)² + 2|Z|), (c - Z²) / (2|Z| + 1). Trivial rows unscaled.

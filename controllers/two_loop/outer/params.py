@@ -94,7 +94,8 @@ class CgmresParams(OcpParams):
     z_guard: float = param(0.05, "-", "guard: Z + zeta kept >= z_guard after each update")
     row_scaling: bool = param(True, "-", "GMRES on D(U) F (diagonal row scaling)")
     obstacle_fade_s: float = param(0.5, "s", "barrier weight fade of an obstacle in and out")
-    fallback_residual: float = param(50.0, "-", "E = ||F||inf above which it restarts")
+    fallback_residual: float = param(50.0, "-",
+                                     "residual E (largest entry of F) above which it restarts")
     fallback_hold_s: float = param(1.0, "s", "duration of the braking plan after a restart")
 
     def __post_init__(self) -> None:
