@@ -1,9 +1,11 @@
-"""The controllers that ship with hwyeval: a table of factories the registry reads.
+"""The controllers that ship with hwyeval: tables of factories and parameter classes.
 
 Each factory maps catalog options to a ready controller (or, for ``sumo``, to
 :class:`controllers.protocol.SumoDriverModel`); it is cheap (no compilation, no solver
 set-up) and raises :class:`controllers.protocol.ConfigError` naming the dotted key of
-a bad option. This module imports nothing of the registry (no import cycle).
+a bad option. :data:`PARAMETERS` names each controller's parameter dataclass (its
+options, for ``controllers.params.describe``). The registry reads both tables; this
+module imports nothing of the registry (no import cycle).
 """
 
 from __future__ import annotations
@@ -12,10 +14,11 @@ import importlib.util
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from controllers.baselines.lane_keep import make_lane_keep
+from controllers.baselines.lane_keep import LaneKeepParams, make_lane_keep
 from controllers.baselines.sumo_driver import make_sumo_driver
 from controllers.protocol import Controller, SumoDriverModel
 from controllers.two_loop.controller import make_two_loop
+from controllers.two_loop.params import IpoptNmpcParams, TwoLoopParams
 
 ControllerFactory = Callable[[Mapping[str, Any]], Controller | SumoDriverModel]
 
@@ -36,3 +39,8 @@ def _factories() -> dict[str, ControllerFactory]:
 
 
 FACTORIES: Mapping[str, ControllerFactory] = _factories()
+
+# name -> the parameter dataclass its options build (``sumo`` has no options).
+PARAMETERS: Mapping[str, type] = {
+    "lane_keep": LaneKeepParams, "two_loop": TwoLoopParams, "ipopt_nmpc": IpoptNmpcParams,
+}

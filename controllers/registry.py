@@ -13,6 +13,7 @@ import re
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+from controllers.params import OptionDoc, describe
 from controllers.protocol import ConfigError, Controller, SumoDriverModel
 
 if TYPE_CHECKING:
@@ -20,6 +21,7 @@ if TYPE_CHECKING:
 
 _NAME = re.compile(r"[a-z0-9_]+")
 _PLUGINS: dict[str, ControllerFactory] = {}
+_PLUGIN_PARAMETERS: dict[str, type] = {}
 
 
 def _builtins() -> Mapping[str, ControllerFactory]:
@@ -32,13 +34,27 @@ def _all() -> dict[str, ControllerFactory]:
     return {**_builtins(), **_PLUGINS}
 
 
-def register(name: str, factory: ControllerFactory) -> None:
-    """Add a plug-in controller; a name may be registered once only."""
+def register(name: str, factory: ControllerFactory, parameters: type | None = None) -> None:
+    """Add a plug-in controller; a name may be registered once only. ``parameters``:
+    the dataclass its options build, if it has options (for :func:`options`)."""
     if not _NAME.fullmatch(name or ""):
         raise ValueError(f"controller name must match [a-z0-9_]+, got {name!r}")
     if name in _all():
         raise ValueError(f"controller {name!r} is already registered")
     _PLUGINS[name] = factory
+    if parameters is not None:
+        _PLUGIN_PARAMETERS[name] = parameters
+
+
+def options(name: str) -> list[OptionDoc]:
+    """Every option of controller ``name``: dotted path, type, default, unit, meaning
+    (empty for a controller without options)."""
+    from controllers.builtin import PARAMETERS
+
+    if name not in _all():
+        raise ConfigError("controller.name", f"one of {names()}", name)
+    cls = {**PARAMETERS, **_PLUGIN_PARAMETERS}.get(name)
+    return describe(cls) if cls is not None else []
 
 
 def names() -> list[str]:

@@ -292,3 +292,14 @@ def test_method_sections_cited_by_the_code_exist() -> None:
         for first, last in re.findall(r"docs/method\.md §(\d+)(?:-§(\d+))?", text):
             cited.update(str(n) for n in range(int(first), int(last or first) + 1))
     assert cited and cited <= sections, cited - sections
+
+
+def test_registry_describes_each_controllers_options() -> None:
+    two_loop = {d.path: d for d in registry.options("two_loop")}
+    assert two_loop["controller.outer.k_max"].default == 12
+    assert "controller.outer.k_max" not in {d.path for d in registry.options("ipopt_nmpc")}
+    assert {d.path for d in registry.options("lane_keep")} == {
+        f"controller.{k}" for k in registry.make("lane_keep").parameters() if k != "name"}
+    assert registry.options("sumo") == []
+    with pytest.raises(ConfigError):
+        registry.options("no_such_controller")

@@ -232,12 +232,11 @@ class TwoLoopController:
                                             observation.obstacles,
                                             float(observation.lateral_reference_m))
             if handed_over:
-                assert self.planner is not None
                 self.tracker.clear()
                 # The lateral reference restarts at the car's offset (the pull-out may
                 # have taken it part of the way), at rest; it then moves on as usual.
                 self.lateral.restart(float(x0[1]))
-                self.planner.restart(x0, launch.ramp.speed_mps, launch.ramp.ramp_accel_mps2)
+                self._planner().restart(x0, launch.ramp.speed_mps, launch.ramp.ramp_accel_mps2)
         lw = launch.weight(float(observation.t_s))
         if lw <= 0.0:
             return 0.0, 0.0, lw
@@ -245,18 +244,26 @@ class TwoLoopController:
                                        observation.obstacles, int(observation.pass_side), dt)
         return steer, torque, lw
 
+    def _planner(self) -> OuterPlanner:
+        if self.planner is None:
+            raise RuntimeError("TwoLoopController used before reset")
+        return self.planner
+
+    def _path(self) -> FrenetPath:
+        if self.path is None:
+            raise RuntimeError("TwoLoopController used before reset")
+        return self.path
+
     def _brake_along_lane(self, st: np.ndarray, x0: np.ndarray) -> tuple[float, float]:
         """Never hand out NaN: hold the lane heading and brake."""
-        assert self.path is not None
-        g = float(self.path.gamma(x0[0]))
+        g = float(self._path().gamma(x0[0]))
         steer = self.params.inner.k_ps * ((g - float(st[2]) + math.pi) % (2 * math.pi) - math.pi)
         torque = -self._vp[0] * self._vp[6] * self.params.outer.fallback_decel_mps2
         return float(steer), float(torque)
 
     def _plan_xy(self, plan: OuterPlan) -> np.ndarray:
         """The plan's (N+1, 2) positions in the world frame."""
-        assert self.path is not None
-        meta, coef, knots = self.path.tables()
+        meta, coef, knots = self._path().tables()
         states = np.ascontiguousarray(plan.states, dtype=np.float64)
         plan_xy = np.empty((states.shape[0], 2))
         _points_many(meta, coef, knots, states[:, 0].copy(), states[:, 1].copy(), plan_xy)
