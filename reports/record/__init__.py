@@ -44,8 +44,8 @@ from reports.record.run import (
 from reports.record.verdict import Failure, MetricValue, Verdict
 
 __all__ = [
-    "CONTROLLER_ARRAYS", "NEIGHBOURS", "ROAD_JSON", "RRD", "RUN_FILES", "RUN_JSON", "SERIES", "TRACE",
-    "TRACEBACK", "ControllerArrays", "ControllerColumns", "DecisionColumns", "EgoBox",
+    "CONTROLLER_ARRAYS", "NEIGHBOURS", "ROAD_JSON", "RRD", "RUN_FILES", "RUN_JSON", "SERIES",
+    "TRACE", "TRACEBACK", "ControllerArrays", "ControllerColumns", "DecisionColumns", "EgoBox",
     "EgoColumns", "Failure", "LaneRecord", "MetricValue", "NeighbourColumns", "RecordError",
     "RoadRecord", "RunInfo", "RunOutcome", "RunRecord", "SafetyColumns", "SeriesColumns",
     "SsmSummary", "StalledVehicle", "SumoCollision", "TimingColumns", "Trace", "Verdict",

@@ -71,38 +71,39 @@ def _type_name(tp: Any) -> str:
     return getattr(tp, "__name__", str(tp))
 
 
-def _decode(tp: Any, value: Any, key: str, path: str) -> Any:
-    origin = typing.get_origin(tp)
-    if tp is Any:
-        return value
-    if origin in (typing.Union, types.UnionType):
-        args = typing.get_args(tp)
-        if value is None and type(None) in args:
-            return None
-        errors = []
-        for arg in args:
-            if arg is type(None):
-                continue
-            try:
-                return _decode(arg, value, key, path)
-            except RecordError as exc:
-                errors.append(exc.expected)
-        raise RecordError(path, key, " or ".join(errors) + (" or null" if type(None) in args
-                                                            else ""), value)
-    if dataclasses.is_dataclass(tp):
-        return decode_dataclass(tp, value, path, key)
-    if origin is tuple:
-        args = typing.get_args(tp)
-        if not isinstance(value, list | tuple):
-            raise RecordError(path, key, "a list", value)
-        item_tp = args[0] if args else Any
-        return tuple(_decode(item_tp, v, f"{key}.{i}", path) for i, v in enumerate(value))
-    if origin is dict or tp is dict:
-        if not isinstance(value, Mapping):
-            raise RecordError(path, key, "a table (JSON object)", value)
-        args = typing.get_args(tp)
-        val_tp = args[1] if len(args) == 2 else Any
-        return {str(k): _decode(val_tp, v, f"{key}.{k}", path) for k, v in value.items()}
+def _decode_union(tp: Any, value: Any, key: str, path: str) -> Any:
+    args = typing.get_args(tp)
+    if value is None and type(None) in args:
+        return None
+    errors = []
+    for arg in args:
+        if arg is type(None):
+            continue
+        try:
+            return _decode(arg, value, key, path)
+        except RecordError as exc:
+            errors.append(exc.expected)
+    raise RecordError(path, key, " or ".join(errors) + (" or null" if type(None) in args
+                                                        else ""), value)
+
+
+def _decode_tuple(tp: Any, value: Any, key: str, path: str) -> Any:
+    args = typing.get_args(tp)
+    if not isinstance(value, list | tuple):
+        raise RecordError(path, key, "a list", value)
+    item_tp = args[0] if args else Any
+    return tuple(_decode(item_tp, v, f"{key}.{i}", path) for i, v in enumerate(value))
+
+
+def _decode_dict(tp: Any, value: Any, key: str, path: str) -> Any:
+    if not isinstance(value, Mapping):
+        raise RecordError(path, key, "a table (JSON object)", value)
+    args = typing.get_args(tp)
+    val_tp = args[1] if len(args) == 2 else Any
+    return {str(k): _decode(val_tp, v, f"{key}.{k}", path) for k, v in value.items()}
+
+
+def _decode_scalar(tp: Any, value: Any, key: str, path: str) -> Any:
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise RecordError(path, key, "a number", value)
@@ -111,15 +112,26 @@ def _decode(tp: Any, value: Any, key: str, path: str) -> Any:
         if isinstance(value, bool) or not isinstance(value, int):
             raise RecordError(path, key, "an integer", value)
         return int(value)
-    if tp is bool:
-        if not isinstance(value, bool):
-            raise RecordError(path, key, "true or false", value)
-        return value
-    if tp is str:
-        if not isinstance(value, str):
-            raise RecordError(path, key, "a string", value)
+    if tp in (bool, str):
+        if not isinstance(value, tp):
+            raise RecordError(path, key, _type_name(tp), value)
         return value
     raise TypeError(f"codec: unsupported field type {tp!r} at {key}")  # pragma: no cover
+
+
+def _decode(tp: Any, value: Any, key: str, path: str) -> Any:
+    origin = typing.get_origin(tp)
+    if tp is Any:
+        return value
+    if origin in (typing.Union, types.UnionType):
+        return _decode_union(tp, value, key, path)
+    if dataclasses.is_dataclass(tp):
+        return decode_dataclass(tp, value, path, key)  # type: ignore[arg-type]
+    if origin is tuple:
+        return _decode_tuple(tp, value, key, path)
+    if origin is dict or tp is dict:
+        return _decode_dict(tp, value, key, path)
+    return _decode_scalar(tp, value, key, path)
 
 
 def decode_dataclass(cls: type[T], data: Any, path: str | Path, key: str = "") -> T:

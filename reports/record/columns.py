@@ -106,7 +106,8 @@ def _coerce(values: np.ndarray, dtype: Any, fill: Any) -> np.ndarray:
                          for v in values], dtype=object)
     if dtype is np.bool_:
         numeric = pd.to_numeric(pd.Series(values), errors="coerce").fillna(0.0).to_numpy()
-        return numeric.astype(np.float64) != 0.0
+        flags: np.ndarray = numeric.astype(np.float64) != 0.0
+        return flags
     numeric = pd.to_numeric(pd.Series(values), errors="coerce").to_numpy(dtype=np.float64)
     if dtype is np.int64:
         return np.where(np.isfinite(numeric), numeric, fill).astype(np.int64)
