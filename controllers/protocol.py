@@ -21,7 +21,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from controllers.behaviour.types import Obstacles, ObstaclePolicy
+from controllers.behaviour.types import ObstaclePolicy, Obstacles
 from controllers.plant.vehicle_model import VehicleParams
 
 __all__ = ["Command", "ConfigError", "Controller", "Observation", "ObstaclePolicy",

@@ -1,4 +1,4 @@
-"""Obstacle ellipses for the outer loop (METHOD.md §4), pure functions shared with ``suite``.
+"""Obstacle ellipses for the outer loop (docs/method.md §4), pure functions of the behaviour layer.
 
 An obstacle vehicle (box length L_o, width W_o, centre (s, y) in the reference-path
 Frenet frame) becomes an ellipse around the Minkowski sum of the two boxes (the

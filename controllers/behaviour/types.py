@@ -162,13 +162,20 @@ class ObstaclePolicy:
     without it only stalled vehicles become obstacles.
     """
 
-    detection_distance_m: float = 100.0
-    rear_range_m: float = 10.0
-    margin_long_m: float = 2.0
-    margin_lat_m: float = 0.4
-    offset_m: float = 0.3
-    max_obstacles: int = 3
-    moving_obstacles: bool = True
+    detection_distance_m: float = field(default=100.0, metadata={
+        "unit": "m", "doc": "a vehicle closer than this to the ego CG becomes an obstacle"})
+    rear_range_m: float = field(default=10.0, metadata={
+        "unit": "m", "doc": "and no more than this behind the ego CG"})
+    margin_long_m: float = field(default=2.0, metadata={
+        "unit": "m", "doc": "safety margin added to the ellipse along the path"})
+    margin_lat_m: float = field(default=0.4, metadata={
+        "unit": "m", "doc": "safety margin added to the ellipse across the path"})
+    offset_m: float = field(default=0.3, metadata={
+        "unit": "m", "doc": "ellipse centre shift away from the pass side"})
+    max_obstacles: int = field(default=3, metadata={
+        "unit": "-", "doc": "obstacle slots of the planner (nearest first)"})
+    moving_obstacles: bool = field(default=True, metadata={
+        "unit": "-", "doc": "moving traffic as obstacles (constant-velocity prediction)"})
 
     def __post_init__(self) -> None:
         for name in ("detection_distance_m", "rear_range_m", "margin_long_m", "margin_lat_m",

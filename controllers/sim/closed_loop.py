@@ -110,7 +110,8 @@ class ScriptedBehaviour:
     reference from ``lateral_fn(t, s_cg, y_cg)`` (else ``pass_side`` and 0), the speed
     set-point as given, ellipses for the vehicles within the detection distance.
     ``pass_side`` FOLLOW_SIDE emulates the follow mode: no offset, the ellipses in the
-    ego lane ahead widened by 1.5 lane widths, Observation.pass_side 0."""
+    ego lane ahead widened by 1.5 lane widths, Observation.pass_side 0.
+    ``frenet_vehicles``, when set, are used instead of projecting the traffic."""
 
     path: FrenetPath
     policy: ObstaclePolicy
@@ -119,6 +120,7 @@ class ScriptedBehaviour:
     lateral_fn: LateralFn | None = None
     lane_width_m: float = 3.5
     t_s: float = 0.0
+    frenet_vehicles: Sequence[FrenetVehicle] | None = None
 
     def decide(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext,
                set_speed_mps: float) -> Decision:
@@ -126,10 +128,13 @@ class ScriptedBehaviour:
         side, y_ref = self.pass_side, 0.0
         if self.lateral_fn is not None:
             side, y_ref = self.lateral_fn(self.t_s, ego.s_m, ego.lat_m)
-        fn = project_traffic(self.path, traffic, ego)
-        vehicles = [FrenetVehicle(float(fn.s_m[i]), float(fn.y_m[i]), float(fn.length_m[i]),
-                                  float(fn.width_m[i]), float(fn.v_s_mps[i]),
-                                  float(fn.v_y_mps[i])) for i in range(traffic.count)]
+        vehicles = self.frenet_vehicles
+        if vehicles is None:  # only world-frame traffic: project it
+            fn = project_traffic(self.path, traffic, ego)
+            vehicles = [FrenetVehicle(float(fn.s_m[i]), float(fn.y_m[i]),
+                                      float(fn.length_m[i]), float(fn.width_m[i]),
+                                      float(fn.v_s_mps[i]), float(fn.v_y_mps[i]))
+                        for i in range(traffic.count)]
         follow = side == FOLLOW_SIDE
         obstacles = build_obstacles(ego.s_m, ego.lat_m, vehicles, self.policy, self.vehicle,
                                     0 if follow else side)
@@ -234,7 +239,9 @@ def simulate(controller: Controller, path_xy: np.ndarray,
         vehs = [_as_vehicle(v) for v in (vehicles(t) if callable(vehicles) else vehicles)]
         vt = target_speed_fn(t, s_cg) if target_speed_fn is not None else target_speed_mps
         if scripted is not None:
-            scripted.t_s = t
+            # The test's vehicles are given in the Frenet frame: use them as given (a
+            # round trip through the world frame would perturb them by ~1e-8 m).
+            scripted.t_s, scripted.frenet_vehicles = t, vehs
         lane_ctx = (lanes(t) if callable(lanes) else lanes) if lanes is not None \
             else LaneContext({}, 0)
         ego = EgoFrenet(float(st[0]), float(st[1]), s_cg, y_cg, math.hypot(st[3], st[4]))
