@@ -1,50 +1,38 @@
-"""Reports regenerated from a catalog output directory (``DIR/<run>/run.json`` …).
+"""Reports of a catalog output directory (``DIR/<run>/run.json`` …), from stored verdicts.
 
-``write_reports(out_dir)`` writes results.csv, summary.csv, junit.xml and report.html
-into ``out_dir`` (only reading the run records); ``compare_runs`` diffs two outputs.
+``write_reports(out_dir)`` writes results.csv, summary.csv, junit.xml and report.html;
+``compare_runs`` diffs two outputs. Sub-packages: ``reports.record`` (the run-directory
+schema), ``reports.metrics`` (judges a record once, right after its run).
+
+The renderers are imported on first use (PEP 562 ``__getattr__``), so that importing
+``reports.record`` or ``reports.metrics`` (as the runner does in every scenario
+process) does not load the HTML, JUnit and comparison code.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
+import importlib
+from typing import TYPE_CHECKING, Any
 
-from reports.compare import CompareResult, MetricTolerance, Tolerances, compare_runs
-from reports.html import write_html
-from reports.junit import write_junit
-from reports.tables import RunEval, collect_runs, write_results_csv, write_summary_csv
+if TYPE_CHECKING:
+    from reports.compare import CompareResult, MetricTolerance, Tolerances, compare_runs
+    from reports.tables import RunEntry, collect_runs
+    from reports.write import ReportPaths, write_reports
 
-
-@dataclass(frozen=True)
-class ReportPaths:
-    """Files written by :func:`write_reports`."""
-
-    results_csv: Path
-    summary_csv: Path
-    junit_xml: Path
-    report_html: Path
+_LAZY = {
+    "CompareResult": "reports.compare", "MetricTolerance": "reports.compare",
+    "Tolerances": "reports.compare", "compare_runs": "reports.compare",
+    "RunEntry": "reports.tables", "collect_runs": "reports.tables",
+    "ReportPaths": "reports.write", "write_reports": "reports.write",
+}
 
 
-def write_reports(out_dir: str | Path, criteria_overrides: Mapping[str, Any] | None = None,
-                  dest_dir: str | Path | None = None) -> ReportPaths:
-    """Evaluate every run under ``out_dir`` and write the four reports into ``dest_dir``
-    (default ``out_dir``). ``criteria_overrides`` apply on top of each run's own criteria."""
-    out_dir = Path(out_dir)
-    if not out_dir.is_dir():
-        raise FileNotFoundError(f"{out_dir}: not a directory")
-    dest = Path(dest_dir) if dest_dir is not None else out_dir
-    dest.mkdir(parents=True, exist_ok=True)
-    runs = collect_runs(out_dir, criteria_overrides)
-    return ReportPaths(
-        results_csv=write_results_csv(runs, dest / "results.csv"),
-        summary_csv=write_summary_csv(runs, dest / "summary.csv"),
-        junit_xml=write_junit(runs, dest / "junit.xml"),
-        report_html=write_html(runs, dest / "report.html",
-                               title=f"hwyeval report — {out_dir.resolve().name}"),
-    )
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'reports' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)
 
 
-__all__ = ["CompareResult", "MetricTolerance", "ReportPaths", "RunEval", "Tolerances",
+__all__ = ["CompareResult", "MetricTolerance", "ReportPaths", "RunEntry", "Tolerances",
            "collect_runs", "compare_runs", "write_reports"]

@@ -1,9 +1,13 @@
 """Compare two catalog outputs (base vs new): status changes, metric and timing regressions.
 
+Only the stored verdicts are read (``run.json`` of each run directory): statuses,
+metric values and typed failures; an unreadable run directory counts as 'error'.
+
 Matching: runs are matched by (scenario, controller). When each directory holds exactly
 one controller and they differ (comparing controller A against B), runs are matched by
-scenario name alone. Unmatched runs are listed as ``missing`` (in base only; a
-regression unless ``missing_is_regression = false``) or ``new`` (in new only).
+scenario name alone. An unreadable run directory is matched by its directory name.
+Unmatched runs are listed as ``missing`` (in base only; a regression unless
+``missing_is_regression = false``) or ``new`` (in new only).
 
 Regressions (exit code 1):
 * ``new_failure``: base passed, new did not; ``worse_status``: fail → error/timeout;
@@ -38,7 +42,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from reports.tables import RunEval, collect_runs
+from reports.tables import RunEntry, collect_runs
 
 HIGHER_IS_WORSE = "higher_is_worse"
 LOWER_IS_WORSE = "lower_is_worse"
@@ -244,25 +248,32 @@ class CompareResult:
         return "\n".join(lines)
 
 
-def _match_keys(base: Sequence[RunEval], new: Sequence[RunEval]
-                ) -> tuple[dict[str, RunEval], dict[str, RunEval]]:
-    base_ctrls = {r.controller for r in base}
-    new_ctrls = {r.controller for r in new}
+def _match_keys(base: Sequence[RunEntry], new: Sequence[RunEntry]
+                ) -> tuple[dict[str, RunEntry], dict[str, RunEntry]]:
+    base_ctrls = {r.controller for r in base if r.record is not None}
+    new_ctrls = {r.controller for r in new if r.record is not None}
     by_scenario = len(base_ctrls) == 1 and len(new_ctrls) == 1 and base_ctrls != new_ctrls
 
-    def key(r: RunEval) -> str:
+    def key(r: RunEntry) -> str:
         return r.scenario if by_scenario else f"{r.scenario} [{r.controller}]"
 
-    return {key(r): r for r in base}, {key(r): r for r in new}
+    def keyed(runs: Sequence[RunEntry], other: Sequence[RunEntry]) -> dict[str, RunEntry]:
+        # an unreadable run directory knows only its name: it takes the key of the
+        # other side's run in the directory of that name
+        by_dir = {r.run_id: key(r) for r in other if r.record is not None}
+        return {(by_dir.get(r.run_id, key(r)) if r.record is None else key(r)): r
+                for r in runs}
+
+    return keyed(base, new), keyed(new, base)
 
 
-def _status_rows(key: str, b: RunEval, n: RunEval) -> list[CompareRow]:
+def _status_rows(key: str, b: RunEntry, n: RunEntry) -> list[CompareRow]:
     rows = []
     common: dict[str, Any] = {"key": key, "scenario": n.scenario, "controller": n.controller}
     rb, rn = STATUS_RANK.get(b.status, 2), STATUS_RANK.get(n.status, 2)
     note = f"{b.status} → {n.status}"
-    if n.failed and n.status != "pass":
-        note += ": " + "; ".join(n.failed)
+    if n.failures and n.status != "pass":
+        note += ": " + "; ".join(f.text for f in n.failures)
     elif n.error and n.status in ("error", "timeout"):
         lines = n.error.strip().splitlines()
         note += ": " + (lines[-1] if lines else n.status)
@@ -275,20 +286,19 @@ def _status_rows(key: str, b: RunEval, n: RunEval) -> list[CompareRow]:
     elif b.status != n.status:
         rows.append(CompareRow(kind="status_change", note=note, **common))
     if b.status == "fail" and n.status == "fail":
-        base_names = {f.split("=", 1)[0] for f in b.failed}
-        for failure in n.failed:
-            if failure.split("=", 1)[0] not in base_names:
-                rows.append(CompareRow(kind="new_criterion", metric=failure.split("=", 1)[0],
-                                       note=failure, **common))
+        base_criteria = {f.criterion for f in b.failures}
+        for failure in n.failures:
+            if failure.criterion not in base_criteria:
+                rows.append(CompareRow(kind="new_criterion", metric=failure.metric,
+                                       note=failure.text, **common))
     return rows
 
 
-def _metric_rows(key: str, b: RunEval, n: RunEval, tol: Tolerances) -> list[CompareRow]:
+def _metric_rows(key: str, b: RunEntry, n: RunEntry, tol: Tolerances) -> list[CompareRow]:
     rows = []
     common: dict[str, Any] = {"key": key, "scenario": n.scenario, "controller": n.controller}
     for metric, mt in tol.metrics.items():
-        vb = float(b.metrics.get(metric, math.nan))
-        vn = float(n.metrics.get(metric, math.nan))
+        vb, vn = b.value(metric), n.value(metric)
         if math.isnan(vb) and math.isnan(vn):
             continue
         if math.isnan(vb) or math.isnan(vn):
@@ -309,8 +319,7 @@ def _metric_rows(key: str, b: RunEval, n: RunEval, tol: Tolerances) -> list[Comp
             rows.append(CompareRow(kind="metric_improvement", metric=metric, base=vb, new=vn,
                                    delta=delta, limit=limit, **common))
     for metric, max_ratio in tol.timing.items():
-        vb = float(b.metrics.get(metric, math.nan))
-        vn = float(n.metrics.get(metric, math.nan))
+        vb, vn = b.value(metric), n.value(metric)
         if not (math.isfinite(vb) and math.isfinite(vn)) or vb <= 0 or vn <= 0:
             continue
         lower_worse = metric in TIMING_LOWER_IS_WORSE
@@ -327,7 +336,7 @@ def _metric_rows(key: str, b: RunEval, n: RunEval, tol: Tolerances) -> list[Comp
     return rows
 
 
-def compare_evaluated(base: Sequence[RunEval], new: Sequence[RunEval],
+def compare_evaluated(base: Sequence[RunEntry], new: Sequence[RunEntry],
                       tolerances: Tolerances | None = None) -> tuple[list[CompareRow], int]:
     """Findings for two lists of evaluated runs, and the number of matched runs."""
     tol = tolerances or Tolerances()
@@ -429,7 +438,7 @@ def _table(rows: Sequence[CompareRow], title: str, show_kind: bool = True) -> st
     return f"<h2>{esc(title)} ({len(rows)})</h2><table>{head}{''.join(body)}</table>"
 
 
-def _status_counts(runs: Sequence[RunEval]) -> dict[str, dict[str, int]]:
+def _status_counts(runs: Sequence[RunEntry]) -> dict[str, dict[str, int]]:
     out: dict[str, dict[str, int]] = {}
     for r in runs:
         out.setdefault(r.controller, {}).setdefault(r.status, 0)
@@ -437,8 +446,8 @@ def _status_counts(runs: Sequence[RunEval]) -> dict[str, dict[str, int]]:
     return out
 
 
-def write_compare_html(result: CompareResult, path: Path, base: Sequence[RunEval] = (),
-                       new: Sequence[RunEval] = ()) -> Path:
+def write_compare_html(result: CompareResult, path: Path, base: Sequence[RunEntry] = (),
+                       new: Sequence[RunEntry] = ()) -> Path:
     """compare.html: one self-contained page (inline CSS, no scripts, no network)."""
     esc = html.escape
     bad = result.exit_code != 0

@@ -2,9 +2,10 @@
 
 ``<testsuites>`` holds one ``<testsuite>`` per controller; each run is a ``<testcase
 name=scenario classname="controller.family" time=wall_s>``. A failed run carries
-``<failure message=... type="criteria">`` listing the failed criteria, an error run
-``<error type="error">`` with the traceback (run.json ``error`` or traceback.txt), a
-timeout ``<error type="timeout">``. Key metrics go to ``<system-out>``.
+``<failure message=... type="criteria">`` listing the stored verdict's failures (one
+line each, with the time and trace step where the criterion was violated), an error
+run ``<error type="error">`` with the traceback (or why its directory cannot be read),
+a timeout ``<error type="timeout">``. Key metrics go to ``<system-out>``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 
-from reports.tables import RunEval
+from reports.record import Failure
+from reports.tables import RunEntry
 
 _INVALID_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]")
 KEY_METRICS = ("collision", "min_gap_m", "min_ttc_s", "progress_m", "offroad_s",
@@ -28,21 +30,29 @@ def xml_text(text: str) -> str:
     return _INVALID_XML.sub("", text)
 
 
-def _time(run: RunEval) -> str:
-    wall = run.meta.get("wall_s")
-    if isinstance(wall, int | float) and math.isfinite(wall) and wall >= 0:
-        return f"{float(wall):.3f}"
+def _time(run: RunEntry) -> str:
+    wall = run.wall_s
+    if math.isfinite(wall) and wall >= 0:
+        return f"{wall:.3f}"
     return "0"
+
+
+def failure_line(failure: Failure) -> str:
+    """``metric=value>limit`` and where it was violated (or that it is an aggregate)."""
+    if failure.step is None:
+        return f"{failure.text} (whole run)"
+    when = f"t={failure.t_s:.2f} s, " if failure.t_s is not None else ""
+    return f"{failure.text} ({when}step {failure.step})"
 
 
 def _safe_name(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_\-]+", "_", text) or "_"
 
 
-def junit_tree(runs: Sequence[RunEval], suite_name: str = "hwyeval") -> ET.ElementTree:
+def junit_tree(runs: Sequence[RunEntry], suite_name: str = "hwyeval") -> ET.ElementTree:
     """The JUnit XML tree for the runs."""
     root = ET.Element("testsuites", name=suite_name)
-    by_controller: dict[str, list[RunEval]] = {}
+    by_controller: dict[str, list[RunEntry]] = {}
     for run in runs:
         by_controller.setdefault(run.controller, []).append(run)
     totals = {"tests": 0, "failures": 0, "errors": 0, "time": 0.0}
@@ -60,9 +70,9 @@ def junit_tree(runs: Sequence[RunEval], suite_name: str = "hwyeval") -> ET.Eleme
                                            f"{_safe_name(run.family)}",
                                  time=_time(run))
             if run.status == "fail":
-                listing = "; ".join(run.failed) or "failed"
+                listing = "; ".join(f.text for f in run.failures) or "failed"
                 node = ET.SubElement(case, "failure", message=xml_text(listing), type="criteria")
-                node.text = xml_text("\n".join(run.failed))
+                node.text = xml_text("\n".join(failure_line(f) for f in run.failures))
             elif run.status == "timeout":
                 first = run.error.strip().splitlines()[0] if run.error.strip() else "timeout"
                 node = ET.SubElement(case, "error", message=xml_text(first), type="timeout")
@@ -73,10 +83,11 @@ def junit_tree(runs: Sequence[RunEval], suite_name: str = "hwyeval") -> ET.Eleme
                                                                      else "error"),
                                      type="error")
                 node.text = xml_text(run.error)
-            if run.metrics:
+            if run.verdict is not None and run.verdict.metrics:
+                values = run.verdict.values()
                 out = ET.SubElement(case, "system-out")
                 out.text = xml_text("\n".join(
-                    f"{k}={run.metrics[k]:.6g}" for k in KEY_METRICS if k in run.metrics)
+                    f"{k}={values[k]:.6g}" for k in KEY_METRICS if k in values)
                     + f"\nrun_dir={run.run_dir}")
         totals["tests"] += len(members)
         totals["failures"] += failures
@@ -90,7 +101,7 @@ def junit_tree(runs: Sequence[RunEval], suite_name: str = "hwyeval") -> ET.Eleme
     return ET.ElementTree(root)
 
 
-def write_junit(runs: Sequence[RunEval], path: str | Path) -> Path:
+def write_junit(runs: Sequence[RunEntry], path: str | Path) -> Path:
     """Write junit.xml; returns its path."""
     path = Path(path)
     junit_tree(runs).write(path, encoding="utf-8", xml_declaration=True)

@@ -1,28 +1,40 @@
-"""results.csv and summary.csv, regenerated from the run directories of a catalog output.
+"""The runs of a catalog output read for reporting, and results.csv / summary.csv.
 
-Status: a run whose ``run.json`` says 'error' or 'timeout' keeps it; every other run is
-re-evaluated (metrics + criteria), so changing criteria and re-running ``hwyeval report``
-re-judges the runs. A run directory that cannot be read or evaluated becomes 'error'.
+Nothing here evaluates: every status, metric and failure is the verdict stored in
+``run.json`` by the runner (see :func:`reports.metrics.evaluate`). A run directory that
+cannot be read (malformed ``run.json``, a broken or missing file, no verdict for a run
+that ended 'ok') becomes an 'error' entry carrying the reason, so one bad directory
+never stops the report of the others.
 """
 
 from __future__ import annotations
 
 import math
 import re
-import traceback
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from reports.metrics.evaluate import REQUIRED_METRICS, EvaluationResult, evaluate_run
+from reports.metrics.evaluate import REQUIRED_METRICS
 from reports.metrics.timing import loop_times_s
-from reports.run_record import TRACEBACK, RunRecord, iter_run_dirs, load_run
+from reports.record import (
+    SERIES,
+    TRACE,
+    TRACEBACK,
+    Failure,
+    MetricValue,
+    RunInfo,
+    RunOutcome,
+    RunRecord,
+    Verdict,
+    iter_run_dirs,
+    load_run,
+)
+from reports.record.meta import END_OK, STATUSES
 
-STATUSES = ("pass", "fail", "error", "timeout")
 LEAD_COLUMNS = ("scenario", "controller", "status", "collision", "min_gap_m", "progress_m",
                 "sim_time_s", "wall_s")
 
@@ -50,104 +62,160 @@ SUMMARY_TIMING: dict[str, tuple[int, ...]] = {"step": (50, 99), "outer": (50, 99
                                               "inner": (50, 99), "sumo": (50, 99)}
 
 
-@dataclass
-class RunEval:
-    """One run directory, loaded and judged."""
+@dataclass(frozen=True)
+class Parts:
+    """Which per-step files of a run directory to load besides run.json."""
+
+    trace: bool = False
+    neighbours: bool = False
+    arrays: bool = False
+    series: bool = False
+
+
+VERDICTS_ONLY = Parts()
+EVERYTHING = Parts(trace=True, neighbours=True, arrays=True, series=True)
+
+
+@dataclass(frozen=True)
+class RunEntry:
+    """One run directory as the reports see it.
+
+    status: pass | fail | error | timeout (an unreadable directory is 'error').
+    error: why a run is 'error' or 'timeout' (its traceback, or the reason it cannot be
+        read); '' otherwise.
+    record: the loaded parts (:class:`Parts`), None when the directory could not be read.
+    """
 
     run_dir: Path
     scenario: str
     controller: str
     family: str
     status: str
-    meta: dict[str, Any]
-    record: RunRecord | None = None
-    result: EvaluationResult | None = None
     error: str = ""
-    metrics: dict[str, float] = field(default_factory=dict)
-    failed: list[str] = field(default_factory=list)
+    record: RunRecord | None = None
 
     @property
     def run_id(self) -> str:
         """Unique name of the run (its directory name)."""
         return self.run_dir.name
 
+    @property
+    def info(self) -> RunInfo | None:
+        return self.record.info if self.record is not None else None
 
-def scenario_family(meta: Mapping[str, Any], scenario: str) -> str:
-    """``run.json`` ``family`` if present, else the scenario name without a trailing
-    seed/index suffix (``_s3``, ``_seed3``, ``-07``) and after stripping ``__...``."""
-    for key in ("family", "scenario_family"):
-        value = meta.get(key)
-        if isinstance(value, str) and value:
-            return value
+    @property
+    def outcome(self) -> RunOutcome | None:
+        return self.record.outcome if self.record is not None else None
+
+    @property
+    def verdict(self) -> Verdict | None:
+        return self.record.verdict if self.record is not None else None
+
+    @property
+    def metrics(self) -> tuple[MetricValue, ...]:
+        return self.verdict.metrics if self.verdict is not None else ()
+
+    @property
+    def failures(self) -> tuple[Failure, ...]:
+        return self.verdict.failures if self.verdict is not None else ()
+
+    def value(self, name: str) -> float:
+        """The stored value of metric ``name`` (NaN if absent)."""
+        return self.verdict.value(name) if self.verdict is not None else math.nan
+
+    @property
+    def wall_s(self) -> float:
+        return self.outcome.wall_s if self.outcome is not None else math.nan
+
+    @property
+    def sim_time_s(self) -> float:
+        return self.outcome.sim_time_s if self.outcome is not None else math.nan
+
+
+def scenario_family(family: str, scenario: str) -> str:
+    """``family`` if set, else the scenario name cut at ``__`` and without a trailing
+    seed/index suffix (``_s3``, ``_seed3``, ``-07``)."""
+    if family:
+        return family
     base = scenario.split("__", 1)[0]
     base = re.sub(r"([_-](seed|s|v)?\d+)+$", "", base)
     return base or scenario
 
 
-def _error_text(run_dir: Path, meta: Mapping[str, Any]) -> str:
-    err = meta.get("error")
-    if isinstance(err, str) and err.strip():
-        return err
-    tb = run_dir / TRACEBACK
-    if tb.is_file():
+def incomplete(record: RunRecord, parts: Parts) -> str:
+    """Why a readable record cannot be reported ('' when it can)."""
+    run_dir = record.run_dir if record.run_dir is not None else Path(".")
+    ended_ok = record.outcome.end == END_OK
+    if record.verdict is None and ended_ok:
+        return f"{run_dir.name}: run.json has no verdict (the run was never judged)"
+    if parts.trace and ended_ok and not (run_dir / TRACE).is_file():
+        return f"{run_dir.name}: {TRACE} is missing"
+    if parts.series and record.verdict is not None and len(record.trace):
+        if record.series is None:
+            return f"{run_dir.name}: {SERIES} is missing"
+        if len(record.series) != len(record.trace):
+            return (f"{run_dir.name}: {SERIES} has {len(record.series)} rows, "
+                    f"{TRACE} {len(record.trace)}")
+    return ""
+
+
+def _error_text(record: RunRecord) -> str:
+    if record.outcome.error and record.outcome.error.strip():
+        return record.outcome.error
+    tb = record.run_dir / TRACEBACK if record.run_dir is not None else None
+    if tb is not None and tb.is_file():
         return tb.read_text(errors="replace")
     return ""
 
 
-def collect_runs(out_dir: str | Path, criteria_overrides: Mapping[str, Any] | None = None,
-                 with_arrays: bool = True) -> list[RunEval]:
-    """Load and evaluate every run directory under ``out_dir`` (sorted by name)."""
-    runs: list[RunEval] = []
-    for run_dir in iter_run_dirs(out_dir):
-        try:
-            record = load_run(run_dir, with_arrays=with_arrays)
-        except Exception as exc:  # noqa: BLE001 - a broken run dir must not stop the report
-            runs.append(RunEval(run_dir, run_dir.name, "?", run_dir.name, "error", {},
-                                error=f"report: cannot load {run_dir}: {exc}"))
-            continue
-        meta = record.meta
-        scenario = str(meta.get("scenario", run_dir.name))
-        controller = str(meta.get("controller", "?"))
-        run = RunEval(run_dir, scenario, controller, scenario_family(meta, scenario),
-                      str(meta.get("status", "")), meta, record)
-        try:
-            run.result = evaluate_run(record, criteria_overrides)
-            run.metrics = run.result.metrics
-            run.failed = list(run.result.failed)
-        except Exception:  # noqa: BLE001
-            run.error = "report: evaluation failed\n" + traceback.format_exc()
-            run.status = "error"
-            runs.append(run)
-            continue
-        if run.status in ("error", "timeout"):
-            run.error = _error_text(run_dir, meta)
-        else:
-            run.status = run.result.status
-        runs.append(run)
-    return runs
+def read_entry(run_dir: Path, parts: Parts = VERDICTS_ONLY) -> RunEntry:
+    """One run directory as a :class:`RunEntry` (an 'error' entry if it cannot be read)."""
+    try:
+        record = load_run(run_dir, trace=parts.trace, neighbours=parts.neighbours,
+                          arrays=parts.arrays, series=parts.series)
+    except Exception as exc:  # any unreadable directory is reported, never fatal
+        return RunEntry(run_dir, run_dir.name, "?", scenario_family("", run_dir.name), "error",
+                        error=f"report: cannot read {run_dir}: {type(exc).__name__}: {exc}")
+    info = record.info
+    family = scenario_family(info.family, info.scenario)
+    problem = incomplete(record, parts)
+    if problem:
+        return RunEntry(run_dir, info.scenario, info.controller, family, "error",
+                        error=f"report: {problem}")
+    status = record.status
+    error = _error_text(record) if status in ("error", "timeout") else ""
+    return RunEntry(run_dir, info.scenario, info.controller, family, status, error, record)
 
 
-def results_frame(runs: Sequence[RunEval]) -> pd.DataFrame:
+def collect_runs(out_dir: str | Path, parts: Parts = VERDICTS_ONLY) -> list[RunEntry]:
+    """Every run directory under ``out_dir`` (sorted by name), with ``parts`` loaded."""
+    return [read_entry(run_dir, parts) for run_dir in iter_run_dirs(out_dir)]
+
+
+def metric_names(runs: Sequence[RunEntry]) -> list[str]:
+    """Required metric names first, then every other stored one, sorted: the same
+    columns in the same order whichever runs a directory holds."""
+    others = {m.name for run in runs for m in run.metrics} - set(REQUIRED_METRICS)
+    return list(REQUIRED_METRICS) + sorted(others)
+
+
+def results_frame(runs: Sequence[RunEntry]) -> pd.DataFrame:
     """One row per run: LEAD_COLUMNS, every metric, failed_criteria, family, run (the run
     directory's name). Error texts are in junit.xml / report.html / traceback.txt."""
-    # required names first, then the rest sorted: the same columns in the same order
-    # whichever runs a directory holds
-    others = {name for run in runs for name in run.metrics} - set(REQUIRED_METRICS)
-    metric_names: list[str] = list(REQUIRED_METRICS) + sorted(others)
+    names = metric_names(runs)
     rows = []
     for run in runs:
-        row: dict[str, Any] = {"scenario": run.scenario, "controller": run.controller,
-                               "status": run.status}
-        for key in ("sim_time_s", "wall_s"):
-            value = run.meta.get(key)
-            row[key] = float(value) if isinstance(value, int | float) else math.nan
-        for name in metric_names:
-            row.setdefault(name, run.metrics.get(name, math.nan))
-        row["failed_criteria"] = ";".join(run.failed)
+        values = run.verdict.values() if run.verdict is not None else {}
+        row: dict[str, object] = {"scenario": run.scenario, "controller": run.controller,
+                                  "status": run.status, "sim_time_s": run.sim_time_s,
+                                  "wall_s": run.wall_s}
+        for name in names:
+            row.setdefault(name, values.get(name, math.nan))
+        row["failed_criteria"] = run.verdict.failed_text if run.verdict is not None else ""
         row["family"] = run.family
         row["run"] = run.run_id
         rows.append(row)
-    columns = list(LEAD_COLUMNS) + [m for m in metric_names if m not in LEAD_COLUMNS] + [
+    columns = list(LEAD_COLUMNS) + [m for m in names if m not in LEAD_COLUMNS] + [
         "failed_criteria", "family", "run"]
     return pd.DataFrame(rows, columns=columns)
 
@@ -160,10 +228,16 @@ def _agg(values: np.ndarray, how: str) -> float:
     return float(getattr(np, how)(values))
 
 
-def summary_frame(runs: Sequence[RunEval]) -> pd.DataFrame:
+def pooled_times_s(runs: Sequence[RunEntry], loop: str) -> np.ndarray:
+    """Per-step times [s] of one loop pooled over the runs whose trace is loaded."""
+    parts = [loop_times_s(r.record.trace, loop) for r in runs if r.record is not None]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def summary_frame(runs: Sequence[RunEntry]) -> pd.DataFrame:
     """Per controller and scenario family (plus family 'ALL' per controller): status
     counts, pass rate, aggregated key metrics and pooled per-step timing percentiles."""
-    groups: dict[tuple[str, str], list[RunEval]] = {}
+    groups: dict[tuple[str, str], list[RunEntry]] = {}
     for run in runs:
         groups.setdefault((run.controller, run.family), []).append(run)
         groups.setdefault((run.controller, "ALL"), []).append(run)
@@ -171,17 +245,17 @@ def summary_frame(runs: Sequence[RunEval]) -> pd.DataFrame:
     for (controller, family), members in sorted(groups.items(),
                                                 key=lambda kv: (kv[0][0], kv[0][1] == "ALL",
                                                                 kv[0][1])):
-        row: dict[str, Any] = {"controller": controller, "family": family, "runs": len(members)}
+        row: dict[str, object] = {"controller": controller, "family": family,
+                                  "runs": len(members)}
         for status in STATUSES:
             row[status] = sum(1 for r in members if r.status == status)
-        row["pass_rate"] = row["pass"] / len(members) if members else math.nan
+        row["pass_rate"] = sum(1 for r in members if r.status == "pass") / len(members)
         for metric, hows in SUMMARY_METRICS.items():
-            values = np.array([r.metrics.get(metric, math.nan) for r in members], dtype=float)
+            values = np.array([r.value(metric) for r in members], dtype=float)
             for how in hows:
                 row[f"{how}_{metric}"] = _agg(values, how)
         for loop, percentiles in SUMMARY_TIMING.items():
-            samples = [loop_times_s(r.record, loop) for r in members if r.record is not None]
-            pooled = np.concatenate(samples) if samples else np.zeros(0)
+            pooled = pooled_times_s(members, loop)
             for q in percentiles:
                 row[f"{loop}_ms_p{q}"] = (float(np.percentile(pooled, q) * 1e3) if pooled.size
                                           else math.nan)
@@ -189,14 +263,14 @@ def summary_frame(runs: Sequence[RunEval]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def write_results_csv(runs: Sequence[RunEval], path: str | Path) -> Path:
+def write_results_csv(runs: Sequence[RunEntry], path: str | Path) -> Path:
     """Write results.csv; returns its path."""
     path = Path(path)
     results_frame(runs).to_csv(path, index=False)
     return path
 
 
-def write_summary_csv(runs: Sequence[RunEval], path: str | Path) -> Path:
+def write_summary_csv(runs: Sequence[RunEntry], path: str | Path) -> Path:
     """Write summary.csv; returns its path."""
     path = Path(path)
     summary_frame(runs).to_csv(path, index=False)

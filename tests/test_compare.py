@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 import pandas as pd
@@ -11,6 +12,7 @@ import pytest
 import synthetic_runs as sr
 
 from reports.compare import MetricTolerance, Tolerances, compare_runs
+from reports.record import RUN_JSON, Trace
 
 
 @pytest.fixture()
@@ -22,11 +24,26 @@ def _copy(base: Path, tmp_path: Path, name: str = "new") -> Path:
     return Path(shutil.copytree(base, tmp_path / name))
 
 
-def _edit_trace(run_dir: Path, **changes: object) -> None:
-    df = pd.read_parquet(run_dir / "trace.parquet")
-    for col, fn in changes.items():
-        df[col] = fn(df[col]) if callable(fn) else fn
-    df.to_parquet(run_dir / "trace.parquet")
+def _scale_lat_dev(factor: float) -> Callable[[Trace], None]:
+    def change(trace: Trace) -> None:
+        trace.ego.lat_dev_m[:] *= factor
+    return change
+
+
+def _collide(trace: Trace) -> None:
+    trace.safety.geom_collision[:] = True
+
+
+def _shift_left_3m(trace: Trace) -> None:
+    trace.ego.y_m[:] += 3.0
+
+
+def _rerun(out: Path, run: str, change: Callable[[Trace], None]) -> None:
+    """Run ``run`` of the synthetic catalog again with its trace changed, judged and
+    written as the runner would (the comparison reads only the stored verdicts)."""
+    record = dict(sr.catalog_records())[run]
+    change(record.trace)
+    sr.write_judged(record, out / run)
 
 
 def test_identical_runs_exit_0(base: Path, tmp_path: Path) -> None:
@@ -42,7 +59,7 @@ def test_identical_runs_exit_0(base: Path, tmp_path: Path) -> None:
 
 def test_metric_worse_beyond_tolerance(base: Path, tmp_path: Path) -> None:
     new = _copy(base, tmp_path)
-    _edit_trace(new / "lane_change_left__ctrl_a", lat_dev_m=lambda s: s * 1.5)
+    _rerun(new, "lane_change_left__ctrl_a", _scale_lat_dev(1.5))
     result = compare_runs(base, new, tmp_path / "cmp")
     assert result.exit_code == 1
     regs = [(r.key, r.kind, r.metric) for r in result.regressions]
@@ -57,7 +74,7 @@ def test_metric_worse_beyond_tolerance(base: Path, tmp_path: Path) -> None:
 
 def test_metric_change_within_tolerance(base: Path, tmp_path: Path) -> None:
     new = _copy(base, tmp_path)
-    _edit_trace(new / "lane_change_left__ctrl_a", lat_dev_m=lambda s: s * 1.05)
+    _rerun(new, "lane_change_left__ctrl_a", _scale_lat_dev(1.05))
     assert compare_runs(base, new, tmp_path / "cmp").exit_code == 0
     # a TOML file can tighten it
     toml = tmp_path / "tol.toml"
@@ -69,7 +86,7 @@ def test_metric_change_within_tolerance(base: Path, tmp_path: Path) -> None:
 
 def test_new_failure_and_fixed(base: Path, tmp_path: Path) -> None:
     new = _copy(base, tmp_path)
-    _edit_trace(new / "cruise_straight__ctrl_a", geom_collision=True)
+    _rerun(new, "cruise_straight__ctrl_a", _collide)
     result = compare_runs(base, new, tmp_path / "cmp")
     assert result.new_failures == ["cruise_straight [ctrl_a]"]
     assert result.exit_code == 1
@@ -102,7 +119,7 @@ def test_missing_and_new_runs(base: Path, tmp_path: Path) -> None:
     new = _copy(base, tmp_path)
     shutil.rmtree(new / "rear_end__ctrl_b")
     sr.write_run(new / "extra__ctrl_a", sr.straight_trace(3.0),
-                 meta=sr.base_meta("extra", "ctrl_a", family="cruise"))
+                 info=sr.base_info("extra", "ctrl_a", family="cruise"))
     result = compare_runs(base, new, tmp_path / "cmp")
     assert result.missing == ["rear_end [ctrl_b]"]
     assert result.added == ["extra [ctrl_a]"]
@@ -117,6 +134,33 @@ def test_single_controller_dirs_match_by_scenario(tmp_path: Path) -> None:
     result = compare_runs(a, b, tmp_path / "cmp")
     assert result.matched == 5 and not result.missing and not result.added
     assert result.exit_code == 0
+
+
+def test_compare_reads_only_the_stored_verdicts(base: Path, tmp_path: Path) -> None:
+    new = _copy(base, tmp_path)
+    # per-step files gone: nothing to re-evaluate from, the verdicts still compare
+    for run_dir in new.iterdir():
+        for part in run_dir.iterdir() if run_dir.is_dir() else ():
+            if part.name != RUN_JSON:
+                part.unlink()
+    assert compare_runs(base, new, tmp_path / "cmp").exit_code == 0
+    # a run directory whose run.json is unreadable counts as an error run
+    (new / "cruise_straight__ctrl_a" / RUN_JSON).write_text("{")
+    result = compare_runs(base, new, tmp_path / "cmp2")
+    assert result.new_failures == ["cruise_straight [ctrl_a]"]
+    (row,) = result.of_kind("new_failure")
+    assert "pass → error" in row.note and "cannot read" in row.note
+
+
+def test_new_criterion_is_told_by_the_typed_failure(base: Path, tmp_path: Path) -> None:
+    new = _copy(base, tmp_path)
+    # the sharp curve fails lateral acceleration in both; now it also leaves its lane
+    _rerun(new, "sharp_curve__ctrl_a", _shift_left_3m)
+    result = compare_runs(base, new, tmp_path / "cmp")
+    rows = result.of_kind("new_criterion")
+    assert [r.metric for r in rows] == ["offroad_s"]
+    assert rows[0].note.startswith("offroad_s=")
+    assert result.exit_code == 1
 
 
 def test_tolerances_validation(tmp_path: Path) -> None:

@@ -1,17 +1,23 @@
-"""Criteria defaults, overrides and failure strings."""
+"""Criteria: defaults, overrides (catalog, then explicit), typed failures and their text."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
+import numpy as np
 import pytest
 import synthetic_runs as sr
 
-from reports.metrics import Criteria, evaluate_run
-from reports.metrics.criteria import parse_failure
-from reports.run_record import load_run
+from reports.metrics import Criteria, evaluate
+from reports.metrics.criteria import CRITERIA_METRICS
+from reports.metrics.values import Measured, measured
+from reports.record import Failure
+
+
+def _m(name: str, value: float, worst_step: int | None = None,
+       increments: np.ndarray | None = None) -> Measured:
+    return measured(name, value, "-", "safety", worst_step=worst_step, increments=increments)
 
 
 def test_nuplan_defaults() -> None:
@@ -25,6 +31,7 @@ def test_nuplan_defaults() -> None:
     assert c.min_ttc_s == 0.95
     assert c.max_collision == 0.0 and c.max_offroad_s == 0.0
     assert c.min_progress_fraction == 0.5
+    assert set(CRITERIA_METRICS) == set(Criteria.names())
     with pytest.raises(dataclasses.FrozenInstanceError):
         c.min_ttc_s = 2.0  # type: ignore[misc]
 
@@ -44,36 +51,53 @@ def test_overrides_apply_and_validate() -> None:
         Criteria.from_overrides({"max_collision": True})
 
 
-def test_check_formats_failures() -> None:
-    c = Criteria()
-    failed = c.check({"max_abs_lat_acc_mps2": 5.0, "min_long_acc_mps2": -5.0,
-                      "min_ttc_s": 0.5, "collision": 1.0, "offroad_s": math.nan})
-    assert failed == ["collision=1>0", "min_ttc_s=0.5<0.95", "min_long_acc_mps2=-5<-4.05",
-                      "max_abs_lat_acc_mps2=5>4.89"]
-    assert parse_failure("min_ttc_s=0.5<0.95") == ("min_ttc_s", 0.5, "<", 0.95)
-    assert c.check({"min_ttc_s": math.inf}) == []
+def test_check_gives_typed_failures_in_criteria_order() -> None:
+    t_s = 0.1 * np.arange(1, 11)
+    failed = Criteria().check([
+        _m("max_abs_lat_acc_mps2", 5.0, worst_step=7), _m("min_long_acc_mps2", -5.0,
+                                                          worst_step=2),
+        _m("min_ttc_s", 0.5, worst_step=4), _m("offroad_s", math.nan),
+        _m("collision", 1.0, worst_step=3, increments=np.eye(10)[3])], t_s)
+    assert [f.text for f in failed] == ["collision=1>0", "min_ttc_s=0.5<0.95",
+                                        "min_long_acc_mps2=-5<-4.05",
+                                        "max_abs_lat_acc_mps2=5>4.89"]
+    assert failed[0] == Failure(criterion="max_collision", metric="collision", value=1.0,
+                                limit=0.0, bound="max", unit="-", step=3,
+                                t_s=pytest.approx(0.4))
+    assert [(f.criterion, f.bound, f.step) for f in failed[1:]] == [
+        ("min_ttc_s", "min", 4), ("min_long_acc_mps2", "min", 2),
+        ("max_abs_lat_acc_mps2", "max", 7)]
+    assert Criteria().check([_m("min_ttc_s", math.inf)]) == ()
+
+
+def test_cumulative_failure_is_where_the_running_total_exceeds_the_limit() -> None:
+    inc = np.zeros(20)
+    inc[[2, 5, 9, 14]] = 1.0  # four fallbacks
+    c = Criteria.from_overrides({"max_fallbacks": 2})
+    (f,) = c.check([_m("fallbacks", 4.0, increments=inc)], 0.05 * np.arange(20))
+    assert f.text == "fallbacks=4>2" and f.step == 9 and f.t_s == pytest.approx(0.45)
 
 
 def test_optional_criteria_off_by_default() -> None:
-    assert Criteria().check({"deadline_misses": 100.0, "min_gap_m": 0.1}) == []
+    assert Criteria().check([_m("deadline_misses", 100.0), _m("min_gap_m", 0.1)]) == ()
     c = Criteria.from_overrides({"max_deadline_misses": 0, "min_gap_m": 1.0})
-    assert c.check({"deadline_misses": 3.0, "min_gap_m": 0.1}) == [
+    assert [f.text for f in c.check([_m("deadline_misses", 3.0), _m("min_gap_m", 0.1)])] == [
         "min_gap_m=0.1<1", "deadline_misses=3>0"]
 
 
-def test_run_json_criteria_and_explicit_overrides(tmp_path: Path) -> None:
+def test_catalog_criteria_then_explicit_overrides() -> None:
     trace = sr.turn_trace(radius_m=60.0, speed_mps=20.0)  # lat acc 6.67 m/s²
     road = sr.circle_road(60.0)
-    plain = load_run(sr.write_run(tmp_path / "plain", trace, road=road))
-    assert evaluate_run(plain).failed == ["max_abs_lat_acc_mps2=6.667>4.89"]
-    relaxed_meta = sr.base_meta("relaxed", criteria={"max_abs_lat_acc_mps2": 7.0})
-    relaxed = load_run(sr.write_run(tmp_path / "relaxed", trace, road=road, meta=relaxed_meta))
-    assert evaluate_run(relaxed).status == "pass"
-    # explicit overrides win over run.json
-    strict = evaluate_run(relaxed, {"max_abs_lat_acc_mps2": 6.0})
-    assert strict.failed == ["max_abs_lat_acc_mps2=6.667>6"]
-    assert strict.failed_criteria == "max_abs_lat_acc_mps2=6.667>6"
-    bad_meta = sr.base_meta("bad", criteria={"lat_acc": 7.0})
-    bad = load_run(sr.write_run(tmp_path / "bad", trace, road=road, meta=bad_meta))
+    plain = evaluate(sr.make_record(trace, road=road)).verdict
+    assert plain.failed_text == "max_abs_lat_acc_mps2=6.667>4.89"
+    relaxed = sr.make_record(trace, road=road,
+                             info=sr.base_info("relaxed", criteria={"max_abs_lat_acc_mps2": 7.0}))
+    assert evaluate(relaxed).verdict.status == "pass"
+    assert evaluate(relaxed).verdict.criteria["max_abs_lat_acc_mps2"] == 7.0
+    # explicit overrides win over the catalog's
+    strict = evaluate(relaxed, {"max_abs_lat_acc_mps2": 6.0}).verdict
+    assert strict.failed_text == "max_abs_lat_acc_mps2=6.667>6"
+    assert strict.criteria["max_abs_lat_acc_mps2"] == 6.0
+    bad = sr.make_record(trace, road=road, info=sr.base_info("bad", criteria={"lat_acc": 7.0}))
     with pytest.raises(ValueError, match="lat_acc"):
-        evaluate_run(bad)
+        evaluate(bad)

@@ -81,6 +81,11 @@ def test_report_renders_offline(driver, tmp_path: Path) -> None:
     link.click()
     assert target.get_attribute("open") is not None
 
+    # a failed run is open and marks where its stored failure was located
+    marks = driver.find_element(By.CSS_SELECTOR, "#run-sharp_curve__ctrl_a p.marks")
+    assert marks.is_displayed()
+    assert marks.text.startswith("✖ max_abs_lat_acc_mps2 at t=")
+
     # the filter hides non-matching runs
     box = driver.find_element(By.ID, "filter")
     box.send_keys("sharp_curve")

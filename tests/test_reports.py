@@ -1,9 +1,12 @@
-"""results.csv, summary.csv, junit.xml and report.html from synthetic run directories."""
+"""results.csv, summary.csv, junit.xml and report.html from synthetic run directories,
+rendered from the stored verdicts and series."""
 
 from __future__ import annotations
 
-import json
+import dataclasses
 import re
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -15,7 +18,10 @@ import synthetic_runs as sr
 from reports import write_reports
 from reports.html import MAX_POINTS, decimate
 from reports.metrics import REQUIRED_METRICS
+from reports.record import SERIES, TRACE, Failure, MetricValue, load_run, write_run_json
 from reports.tables import LEAD_COLUMNS, scenario_family
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -44,6 +50,7 @@ def test_results_csv(catalog: Path) -> None:
     assert by[("crash_case", "ctrl_b")].status == "error"
     assert by[("crash_case", "ctrl_b")].run == "crash_case__ctrl_b"
     assert by[("slow_case", "ctrl_b")].status == "timeout"
+    assert by[("slow_case", "ctrl_b")].failed_criteria == "steps=0<1"
     assert by[("cruise_straight", "ctrl_a")].family == "cruise"
     assert by[("cruise_straight", "ctrl_a")].wall_s == 4.0
     assert by[("cruise_straight", "ctrl_a")].progress_m == pytest.approx(399.0)
@@ -74,6 +81,10 @@ def test_junit_xml(catalog: Path) -> None:
     assert failure is not None and "max_abs_lat_acc_mps2=6.667>4.89" in failure.get("message", "")
     assert curve.get("time") == "2.000"
     assert cases[("ctrl_b.curve", "sharp_curve")].find("failure") is None
+    rear = cases[("ctrl_a.cut_in", "rear_end")].find("failure")
+    assert rear is not None
+    # where it happened: the first of the 5 colliding steps of 80 (t = 3.8 s)
+    assert "collision=1>0 (t=3.80 s, step 75)" in (rear.text or "").splitlines()
     crash = cases[("ctrl_b.cruise", "crash_case")].find("error")
     assert crash is not None and crash.get("type") == "error"
     assert "Traceback" in (crash.text or "") and '<&> "quoted"' in (crash.text or "")
@@ -86,28 +97,54 @@ def test_junit_xml(catalog: Path) -> None:
                                                        for c in cases_in)
 
 
-def test_criteria_override_rejudges(tmp_path: Path) -> None:
+def test_reports_render_the_stored_verdict_not_the_trace(tmp_path: Path) -> None:
+    """A run whose trace passes but whose stored verdict says it failed is reported as
+    failed, with the stored failure, value and location: nothing re-evaluates."""
     out = sr.make_catalog(tmp_path / "c", controllers=("ctrl_a",))
-    write_reports(out, criteria_overrides={"max_abs_lat_acc_mps2": 8.0})
-    df = pd.read_csv(out / "results.csv")
-    assert df.set_index("scenario").loc["sharp_curve", "status"] == "pass"
-
-
-def test_broken_run_is_an_error_row(tmp_path: Path) -> None:
-    out = sr.make_catalog(tmp_path / "c", controllers=("ctrl_a",))
-    meta_path = out / "cruise_straight__ctrl_a" / "run.json"
-    meta = json.loads(meta_path.read_text())
-    meta["criteria"] = {"no_such_limit": 1.0}
-    meta_path.write_text(json.dumps(meta))
-    (tmp_path / "c" / "garbage__x").mkdir()
-    (tmp_path / "c" / "garbage__x" / "run.json").write_text("{not json")
+    run_dir = out / "cruise_straight__ctrl_a"
+    record = load_run(run_dir)
+    assert record.verdict is not None and record.verdict.status == "pass"
+    stored = Failure(criterion="max_abs_lat_acc_mps2", metric="max_abs_lat_acc_mps2",
+                     value=9.876, limit=4.89, bound="max", unit="m/s^2", step=123,
+                     t_s=float(record.trace.t_s[123]))
+    metrics = tuple(dataclasses.replace(m, value=9.876) if m.name == "max_abs_lat_acc_mps2"
+                    else m for m in record.verdict.metrics)
+    metrics += (MetricValue(name="stored_only_metric", value=42.0, unit="-", kind="health"),)
+    record.verdict = dataclasses.replace(record.verdict, status="fail", metrics=metrics,
+                                         failures=(stored,))
+    write_run_json(record, run_dir)
     paths = write_reports(out)
-    df = pd.read_csv(paths.results_csv)
+    row = pd.read_csv(paths.results_csv).set_index("run").loc["cruise_straight__ctrl_a"]
+    assert row.status == "fail"
+    assert row.failed_criteria == "max_abs_lat_acc_mps2=9.876>4.89"
+    assert row.max_abs_lat_acc_mps2 == 9.876 and row.stored_only_metric == 42.0
+    junit = paths.junit_xml.read_text()
+    assert "max_abs_lat_acc_mps2=9.876&gt;4.89 (t=6.20 s, step 123)" in junit
+    html = paths.report_html.read_text()
+    assert "max_abs_lat_acc_mps2 at t=6.2 s" in html  # the stored location, marked
+
+
+def test_unreadable_run_directories_are_error_rows(tmp_path: Path) -> None:
+    out = sr.make_catalog(tmp_path / "c", controllers=("ctrl_a",))
+    (out / "garbage__x").mkdir()
+    (out / "garbage__x" / "run.json").write_text("{not json")
+    wrong = out / "cruise_straight__ctrl_a" / "run.json"
+    wrong.write_text(wrong.read_text().replace('"seed": 0', '"seed": "zero"'))
+    (out / "lane_change_left__ctrl_a" / SERIES).unlink()
+    (out / "sharp_curve__ctrl_a" / TRACE).write_bytes(b"not parquet")
+    paths = write_reports(out)
+    df = pd.read_csv(paths.results_csv).set_index("run")
     assert len(df) == 6
-    assert df[df.run == "cruise_straight__ctrl_a"].iloc[0].status == "error"
-    assert df[df.run == "garbage__x"].iloc[0].status == "error"
-    assert "no_such_limit" in paths.report_html.read_text()
-    assert "no_such_limit" in paths.junit_xml.read_text()
+    for run in ("garbage__x", "cruise_straight__ctrl_a", "lane_change_left__ctrl_a",
+                "sharp_curve__ctrl_a"):
+        assert df.loc[run, "status"] == "error", run
+        assert np.isnan(df.loc[run, "collision"]), run
+    assert df.loc["rear_end__ctrl_a", "status"] == "fail"  # the others are intact
+    assert df.loc["cruise_straight__ctrl_a", "scenario"] == "cruise_straight__ctrl_a"
+    junit, html = paths.junit_xml.read_text(), paths.report_html.read_text()
+    for reason in ("info.seed: expected an integer", "series.parquet is missing",
+                   "a readable parquet file", "a readable JSON file"):
+        assert reason in junit and reason in html, reason
 
 
 def test_html_is_self_contained(catalog: Path) -> None:
@@ -121,6 +158,8 @@ def test_html_is_self_contained(catalog: Path) -> None:
     # failed ones come first and open
     first = re.search(r'<details class="run" id="[^"]+" data-status="(\w+)"[^>]*?( open)?>', text)
     assert first is not None and first.group(1) == "error" and first.group(2) == " open"
+    # the rear-end collision is marked at its stored step's time
+    assert "collision at t=3.8 s" in text
 
 
 def test_decimation_keeps_extremes() -> None:
@@ -136,9 +175,9 @@ def test_html_size_for_a_large_catalog(tmp_path: Path) -> None:
     out = tmp_path / "big"
     for i in range(100):
         trace = sr.lane_change_trace(duration_s=30.0, dt_s=0.02, seed=i)
-        nb = sr.lead_vehicle(trace, 40.0 + 25.0 * trace["t_s"].to_numpy(), 7.0, 25.0)
+        nb = sr.lead_vehicle(trace, 40.0 + 25.0 * trace.t_s, 7.0, 25.0)
         sr.write_run(out / f"case_{i:03d}", trace, neighbours=nb,
-                     meta=sr.base_meta(f"case_{i:03d}", "ctrl_a" if i % 2 else "ctrl_b",
+                     info=sr.base_info(f"case_{i:03d}", "ctrl_a" if i % 2 else "ctrl_b",
                                        family=f"fam{i % 5}", step_s=0.02))
     paths = write_reports(out)
     size = paths.report_html.stat().st_size
@@ -148,6 +187,15 @@ def test_html_size_for_a_large_catalog(tmp_path: Path) -> None:
 
 
 def test_family_fallback() -> None:
-    assert scenario_family({"family": "x"}, "anything") == "x"
-    assert scenario_family({}, "stall_mid_s3") == "stall_mid"
-    assert scenario_family({}, "stall__pos300") == "stall"
+    assert scenario_family("x", "anything") == "x"
+    assert scenario_family("", "stall_mid_s3") == "stall_mid"
+    assert scenario_family("", "stall__pos300") == "stall"
+
+
+def test_importing_the_record_schema_loads_no_renderer() -> None:
+    code = ("import sys, reports.record, reports.metrics; "
+            "loaded = [m for m in ('reports.html', 'reports.junit', 'reports.compare', "
+            "'reports.tables', 'reports.write') if m in sys.modules]; print(loaded)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "[]"

@@ -1,37 +1,38 @@
-"""Pass/fail criteria on run metrics.
+"""Pass/fail criteria on run metrics, and the typed failures they produce.
 
-Defaults are nuPlan's comfort bounds (long acc in [−4.05, 2.40] m/s², |lat acc| ≤ 4.89
-m/s², |yaw acc| ≤ 1.93 rad/s², |yaw rate| ≤ 0.95 rad/s, |long jerk| ≤ 4.13 m/s³,
-|jerk| ≤ 8.37 m/s³) plus: no collision, no drivable-area violation (``offroad_s`` ≤ 0),
-TTC ≥ 0.95 s, and progress ≥ 0.5 × expected progress.
+Each criterion bounds one metric (:data:`CRITERIA_METRICS`): ``max`` fails when the
+value exceeds the limit, ``min`` when it is below it. A criterion whose limit is
+``None`` is off; one whose metric is NaN (not measurable in this run) is skipped.
+Defaults and the reasoning behind them are in ``docs/metrics.md``.
 
-* TTC: ``min_ttc_s`` only counts steps where the ego moves (≥ 0.5 m/s) and vehicles not
-  behind it (see :mod:`reports.metrics.safety`): a short TTC while standing behind a
-  stopped car, or while being caught up from behind, does not fail the run.
-* Progress: ``progress_ratio`` = progress along the reference path / the distance the
-  speed set-point would cover over the run, capped at the route length remaining at
-  the start (so a run longer than the route is not asked to drive past its end, and a
-  run shorter than the route is judged on its own duration). The set-point is the one
-  given each step, which the runner lowers to follow a blocking car when no side is
-  free — following is not a progress failure.
-* A criterion whose metric is NaN (not measurable, e.g. no comfort signal) is skipped;
-  a run with no trace rows fails with ``steps=0<1``.
+Where a failure happened (``Failure.step``, a trace row, and ``Failure.t_s``):
 
-Overrides: ``run.json["criteria"]`` (from the catalog) maps field names of
-:class:`Criteria` to numbers; ``null`` disables a criterion. Unknown names raise.
-Each failure reads ``metric=value>limit`` (upper bound exceeded) or
-``metric=value<limit`` (lower bound not reached).
+* cumulative metrics (durations and counts: collision, offroad_s, shoulder_s,
+  deadline_misses, fallbacks) carry per-step increments; the step is the first row
+  at which their running total exceeds the limit (with the default limit 0: the
+  first collision, the first step off the road, ...);
+* extremes (accelerations, jerks, TTC, gaps, margins, residual, ...) fail where the
+  extreme was attained: their ``worst_step``;
+* aggregates (rms_lat_dev_m, progress_ratio) have no step (None).
+
+Overrides: the catalog's ``criteria`` table (``info.criteria``) maps field names of
+:class:`Criteria` to numbers; ``null`` disables a criterion; unknown names raise.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
-# criterion field -> (metric name, bound kind: "max" fails if value > limit,
-#                     "min" fails if value < limit)
+import numpy as np
+
+from reports.metrics.values import Measured
+from reports.record import Failure
+
+# criterion field -> (metric name, bound: "max" fails if value > limit,
+#                                       "min" fails if value < limit)
 CRITERIA_METRICS: dict[str, tuple[str, str]] = {
     "max_collision": ("collision", "max"),
     "max_offroad_s": ("offroad_s", "max"),
@@ -53,6 +54,9 @@ CRITERIA_METRICS: dict[str, tuple[str, str]] = {
     "max_fallbacks": ("fallbacks", "max"),
     "max_residual": ("residual_max", "max"),
 }
+
+# Not a Criteria field: a run without trace rows has nothing to judge and fails this.
+STEPS_CRITERION = "min_steps"
 
 
 @dataclass(frozen=True)
@@ -115,47 +119,50 @@ class Criteria:
         return replace(base, **changes)
 
     def as_dict(self) -> dict[str, float | None]:
-        """Field name -> limit (for run.json)."""
+        """Field name -> limit (stored as ``Verdict.criteria``)."""
         return asdict(self)
 
-    def check(self, metrics: Mapping[str, float]) -> list[str]:
-        """Failed criteria as ``metric=value>limit`` / ``metric=value<limit`` strings."""
-        failed: list[str] = []
-        for name, (metric, kind) in CRITERIA_METRICS.items():
-            limit = getattr(self, name)
-            if limit is None:
+    def check(self, metrics: Sequence[Measured], t_s: np.ndarray | None = None
+              ) -> tuple[Failure, ...]:
+        """The failed criteria, in :data:`CRITERIA_METRICS` order, each located (see the
+        module doc); ``t_s`` (T,) gives their times."""
+        by_name = {m.name: m for m in metrics}
+        failed: list[Failure] = []
+        for criterion, (name, bound) in CRITERIA_METRICS.items():
+            limit = getattr(self, criterion)
+            found = by_name.get(name)
+            if limit is None or found is None or math.isnan(found.metric.value):
                 continue
-            value = metrics.get(metric, float("nan"))
-            try:
-                value = float(value)
-            except (TypeError, ValueError):
-                continue
-            if math.isnan(value):
-                continue
-            if kind == "max" and value > limit:
-                failed.append(f"{metric}={fmt_value(value)}>{fmt_value(limit)}")
-            elif kind == "min" and value < limit:
-                failed.append(f"{metric}={fmt_value(value)}<{fmt_value(limit)}")
-        return failed
+            value = found.metric.value
+            if (bound == "max" and value > limit) or (bound == "min" and value < limit):
+                step = violation_step(found, limit, bound)
+                failed.append(Failure(criterion=criterion, metric=name, value=value,
+                                      limit=float(limit), bound=bound, unit=found.metric.unit,
+                                      step=step, t_s=_time_at(t_s, step)))
+        return tuple(failed)
 
 
-def fmt_value(value: float) -> str:
-    """Compact number for failure strings (4 significant digits)."""
-    if math.isinf(value):
-        return "inf" if value > 0 else "-inf"
-    return f"{value:.4g}"
+def violation_step(found: Measured, limit: float, bound: str) -> int | None:
+    """The trace row where a failed criterion was violated (see the module doc)."""
+    inc = found.increments
+    if inc is not None and bound == "max" and inc.size:
+        over = np.flatnonzero(np.cumsum(np.nan_to_num(inc)) > limit)
+        if over.size:
+            return int(over[0])
+        # rounding put the total a hair under the limit: the last contributing row
+        contributing = np.flatnonzero(np.nan_to_num(inc) > 0)
+        return int(contributing[-1]) if contributing.size else None
+    return found.metric.worst_step
 
 
-def parse_failure(text: str) -> tuple[str, float, str, float] | None:
-    """``"name=value>limit"`` -> (name, value, op, limit); None if it doesn't parse."""
-    if "=" not in text:
+def _time_at(t_s: np.ndarray | None, step: int | None) -> float | None:
+    if t_s is None or step is None or not 0 <= step < t_s.size:
         return None
-    name, rest = text.split("=", 1)
-    for op in (">", "<"):
-        if op in rest:
-            value, limit = rest.split(op, 1)
-            try:
-                return name, float(value), op, float(limit)
-            except ValueError:
-                return None
-    return None
+    value = float(t_s[step])
+    return value if math.isfinite(value) else None
+
+
+def steps_failure() -> Failure:
+    """The failure of a run without trace rows (``steps=0<1``)."""
+    return Failure(criterion=STEPS_CRITERION, metric="steps", value=0.0, limit=1.0,
+                   bound="min", unit="-")

@@ -1,19 +1,32 @@
-"""Evaluate one run record: every metric, the criteria, a pass/fail status."""
+"""Judge one run record: every metric, its per-step series, the criteria, one verdict.
+
+:func:`evaluate` is called once per run, by the runner, right after the run; the
+:class:`Evaluation` it returns is stored in the run directory (``run.json``'s
+``verdict`` and ``series.parquet``) and only read from then on.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
-from reports.metrics.comfort import comfort_metrics
-from reports.metrics.criteria import Criteria
-from reports.metrics.safety import safety_metrics
+import numpy as np
+
+from reports.metrics.comfort import comfort_metrics, comfort_series
+from reports.metrics.context import build_context
+from reports.metrics.criteria import Criteria, steps_failure
+from reports.metrics.drivable import drivable_metrics, offroad_excess_series
+from reports.metrics.safety import ellipse_margin_series, safety_metrics
 from reports.metrics.timing import health_metrics, timing_metrics
 from reports.metrics.tracking import tracking_metrics
-from reports.run_record import RunRecord
+from reports.metrics.ttc import ttc_pairs, ttc_series
+from reports.metrics.values import Measured
+from reports.record import RunRecord, SeriesColumns, Verdict
+from reports.record.meta import END_OK
 
-# The metric names every evaluation provides, in report-column order.
+# The metric names every verdict has, in report-column order (the others follow, sorted).
 REQUIRED_METRICS: tuple[str, ...] = (
     "collision", "min_gap_m", "progress_m", "min_ttc_s", "min_ellipse_margin", "offroad_s",
     "min_long_acc_mps2", "max_long_acc_mps2", "max_abs_lat_acc_mps2", "max_abs_yaw_rate_radps",
@@ -23,59 +36,74 @@ REQUIRED_METRICS: tuple[str, ...] = (
 )
 
 
-@dataclass
-class EvaluationResult:
-    """metrics: name -> value (SI units in the names); failed: ``name=value>limit`` strings;
-    status: 'pass' or 'fail'."""
+@dataclass(frozen=True)
+class Evaluation:
+    """The verdict of a run and the series its metrics are extremes of (T rows)."""
 
-    metrics: dict[str, float]
-    failed: list[str] = field(default_factory=list)
-    status: str = "pass"
+    verdict: Verdict
+    series: SeriesColumns
 
-    @property
-    def failed_criteria(self) -> str:
-        """The failures as one ``;``-separated string (results.csv column)."""
-        return ";".join(self.failed)
-
-    def as_row(self) -> dict[str, Any]:
-        """metrics + ``failed_criteria`` + ``status``, for tables and run.json."""
-        row: dict[str, Any] = dict(self.metrics)
-        row["failed_criteria"] = self.failed_criteria
-        row["status"] = self.status
-        return row
+    def apply(self, record: RunRecord) -> RunRecord:
+        """A copy of ``record`` carrying this verdict and series (ready for ``write_run``)."""
+        return dataclasses.replace(record, verdict=self.verdict, series=self.series)
 
 
-def compute_metrics(record: RunRecord) -> dict[str, float]:
-    """Every metric of a run (NaN where not measurable), required names first."""
-    found: dict[str, float] = {}
-    found.update(safety_metrics(record))
-    found.update(comfort_metrics(record))
-    found.update(tracking_metrics(record))
-    found.update(timing_metrics(record))
-    found.update(health_metrics(record))
-    ordered = {name: float(found.get(name, float("nan"))) for name in REQUIRED_METRICS}
-    for name in sorted(found):
-        if name not in ordered:
-            ordered[name] = float(found[name])
-    return ordered
+def criteria_for(record: RunRecord, criteria_overrides: Mapping[str, Any] | None = None
+                 ) -> Criteria:
+    """Criteria of a run: defaults, then ``info.criteria`` (the catalog's), then
+    ``criteria_overrides``. Raises ValueError on an unknown name or a bad value."""
+    own = Criteria.from_overrides(record.info.criteria or None)
+    return Criteria.from_overrides(criteria_overrides, base=own)
 
 
-def criteria_for(record: RunRecord, criteria_overrides: Mapping[str, Any] | None = None,
-                 base: Criteria | None = None) -> Criteria:
-    """Criteria of a run: defaults (or ``base``), then ``run.json["criteria"]``, then
-    ``criteria_overrides``. Raises ValueError on unknown names."""
-    criteria = Criteria.from_overrides(record.meta.get("criteria") or None, base=base)
-    return Criteria.from_overrides(criteria_overrides, base=criteria)
+def measure(record: RunRecord) -> tuple[list[Measured], SeriesColumns]:
+    """Every metric of a record (NaN where not measurable) and its series."""
+    ctx = build_context(record)
+    comfort = comfort_series(ctx)
+    pairs = ttc_pairs(ctx)
+    ahead, behind = ttc_series(ctx, pairs, ahead=True), ttc_series(ctx, pairs, ahead=False)
+    excess = offroad_excess_series(ctx)
+    margin = ellipse_margin_series(ctx)
+    series = SeriesColumns(
+        long_acc_mps2=comfort.long_acc_mps2, lat_acc_mps2=comfort.lat_acc_mps2,
+        yaw_rate_radps=comfort.yaw_rate_radps, yaw_acc_radps2=comfort.yaw_acc_radps2,
+        long_jerk_mps3=comfort.long_jerk_mps3, jerk_mps3=comfort.jerk_mps3,
+        ttc_s=ahead, ttc_rear_s=behind, offroad_excess_m=excess, ellipse_margin=margin)
+    found = (safety_metrics(ctx, ahead, behind, margin) + drivable_metrics(ctx, excess)
+             + comfort_metrics(comfort) + tracking_metrics(ctx) + timing_metrics(ctx)
+             + health_metrics(ctx))
+    return _report_order(found), series
 
 
-def evaluate_run(record: RunRecord, criteria_overrides: Mapping[str, Any] | None = None,
-                 criteria: Criteria | None = None) -> EvaluationResult:
-    """Metrics, failed criteria and 'pass'/'fail' for one run (tolerates an empty trace,
-    which fails as ``steps=0<1``). ``criteria`` replaces the defaults as the base the
-    run's own ``criteria`` and then ``criteria_overrides`` are applied to."""
-    limits = criteria_for(record, criteria_overrides, base=criteria)
-    metrics = compute_metrics(record)
-    failed = limits.check(metrics)
+def _report_order(found: list[Measured]) -> list[Measured]:
+    by_name = {m.name: m for m in found}
+    if len(by_name) != len(found):
+        raise RuntimeError("metrics: two modules produce the same metric name")
+    missing = [name for name in REQUIRED_METRICS if name not in by_name]
+    if missing:
+        raise RuntimeError(f"metrics: required metrics not computed: {missing}")
+    rest = sorted(set(by_name) - set(REQUIRED_METRICS))
+    return [by_name[name] for name in (*REQUIRED_METRICS, *rest)]
+
+
+def evaluate(record: RunRecord, criteria_overrides: Mapping[str, Any] | None = None
+             ) -> Evaluation:
+    """Judge a run (see the module doc).
+
+    Criteria: :func:`criteria_for`. Status: ``record.outcome.end`` when the run did not
+    end 'ok' ('error' or 'timeout', judged on what was recorded), else 'fail' when any
+    criterion failed and 'pass' otherwise. A run without trace rows fails ``steps``
+    first. Raises ValueError for invalid criteria.
+    """
+    limits = criteria_for(record, criteria_overrides)
+    found, series = measure(record)
+    failures = limits.check(found, np.asarray(record.trace.t_s, dtype=np.float64))
     if len(record.trace) == 0:
-        failed.insert(0, "steps=0<1")
-    return EvaluationResult(metrics=metrics, failed=failed, status="fail" if failed else "pass")
+        failures = (steps_failure(), *failures)
+    if record.outcome.end != END_OK:
+        status = record.outcome.end
+    else:
+        status = "fail" if failures else "pass"
+    verdict = Verdict(status=status, metrics=tuple(m.metric for m in found),
+                      failures=failures, criteria=limits.as_dict())
+    return Evaluation(verdict=verdict, series=series)

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from reports.record.meta import EgoBox
+
 
 def box_corners(cx: np.ndarray | float, cy: np.ndarray | float, heading_rad: np.ndarray | float,
                 length_m: np.ndarray | float, width_m: np.ndarray | float) -> np.ndarray:
@@ -30,7 +32,8 @@ def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.n
     denom = np.maximum(np.sum(ab * ab, axis=-1), 1e-12)
     t = np.clip(np.sum((p - a) * ab, axis=-1) / denom, 0.0, 1.0)
     closest = a + t[..., None] * ab
-    return np.linalg.norm(p - closest, axis=-1)
+    out: np.ndarray = np.linalg.norm(p - closest, axis=-1)
+    return out
 
 
 def boxes_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -66,3 +69,20 @@ def ego_box_centre(x_cg: float, y_cg: float, psi_rad: float,
     """The ego's box centre from its CG (the box centre lies ahead of the CG by the offset)."""
     return (float(x_cg + cg_to_box_centre_m * np.cos(psi_rad)),
             float(y_cg + cg_to_box_centre_m * np.sin(psi_rad)))
+
+
+
+def ego_box_centres(x_m: np.ndarray, y_m: np.ndarray, psi_rad: np.ndarray,
+                    ego: EgoBox) -> tuple[np.ndarray, np.ndarray]:
+    """Box centres (T,) [m] along a CG path (T,): ``cg_to_box_centre_m`` ahead of the CG
+    along the yaw."""
+    psi = np.asarray(psi_rad, dtype=np.float64)
+    return (np.asarray(x_m, dtype=np.float64) + ego.cg_to_box_centre_m * np.cos(psi),
+            np.asarray(y_m, dtype=np.float64) + ego.cg_to_box_centre_m * np.sin(psi))
+
+
+def ego_box_corners(x_m: np.ndarray, y_m: np.ndarray, psi_rad: np.ndarray,
+                    ego: EgoBox) -> np.ndarray:
+    """Corners (T, 4, 2) [m] of the ego box along a CG path (T,)."""
+    cx, cy = ego_box_centres(x_m, y_m, psi_rad, ego)
+    return box_corners(cx, cy, psi_rad, ego.length_m, ego.width_m).reshape(cx.shape[0], 4, 2)

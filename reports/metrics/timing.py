@@ -1,17 +1,17 @@
-"""Timing and optimiser-health metrics.
+"""Timing (wall-clock) and optimiser-health metrics.
 
-Per loop — ``outer`` (``outer_s``), ``inner`` (``inner_s``), ``obstacles``
-(``obstacles_s``) and ``step`` (the whole controller step, ``controller_s``) — the
-percentiles p50/p95/p99, the mean and max in milliseconds (``{loop}_ms_p50`` …), and
-the variance of the per-step time in s² (``step_var_s2`` for the whole step,
-``{loop}_step_var_s2`` for the others). ``deadline_misses`` counts steps whose
-``controller_s`` exceeds the control period (``run.json`` ``step_s``);
-``deadline_miss_frac`` is that count over the steps. ``sumo_ms_*`` time SUMO's own step.
-``realtime_factor`` = sim_time_s / wall_s (> 1 is faster than real time).
+Timing, per loop of :data:`LOOPS` (``step`` = the whole behaviour + controller step):
+``{loop}_ms_p50``/``_p95``/``_p99``/``_mean``/``_max`` [ms] over the steps with a time,
+and the variance of the per-step time [s²] (``step_var_s2`` for the whole step,
+``{loop}_step_var_s2`` for the others). ``deadline_misses`` counts the steps whose
+``controller_s`` exceeds the control period, ``deadline_miss_frac`` is that count over
+the steps. ``realtime_factor`` = sim_time_s / wall_s (> 1: faster than real time);
+``sim_time_s``, ``wall_s`` and ``control_period_ms`` are copied for the tables.
 
 Health: ``residual_max`` / ``residual_final`` (outer-loop residual E = ‖F‖∞, NaN if the
 controller has none), ``fallbacks`` (steps where a safe fallback replaced the plan),
-``guards`` (total barrier-guard firings).
+``guards`` (barrier-guard firings in total; a negative entry means 'not recorded' and
+counts 0), ``steps`` (trace rows).
 """
 
 from __future__ import annotations
@@ -20,91 +20,97 @@ import math
 
 import numpy as np
 
-from reports.metrics.tracking import column, control_period_s
-from reports.run_record import RunRecord
+from reports.metrics.context import RunContext
+from reports.metrics.values import Measured, extreme, measured
+from reports.record import Trace
+from reports.record.columns import FloatColumn
 
-LOOPS: dict[str, str] = {
-    "step": "controller_s",
-    "outer": "outer_s",
-    "inner": "inner_s",
-    "obstacles": "obstacles_s",
-    "sumo": "sumo_s",
-}
+LOOPS: tuple[str, ...] = ("step", "outer", "inner", "obstacles", "sumo")
 
 
-def loop_times_s(record: RunRecord, loop: str) -> np.ndarray:
-    """Finite per-step times [s] of one loop (a key of ``LOOPS``)."""
-    t = column(record, LOOPS[loop])
-    return t[np.isfinite(t)]
+def loop_column_s(trace: Trace, loop: str) -> FloatColumn:
+    """The per-step time column [s] of a loop of :data:`LOOPS`."""
+    columns = {"step": trace.timing.controller_s, "outer": trace.controller.outer_s,
+               "inner": trace.controller.inner_s, "obstacles": trace.timing.obstacles_s,
+               "sumo": trace.timing.sumo_s}
+    return columns[loop]
 
 
-def _var_name(prefix: str) -> str:
-    """``step_var_s2`` for the whole step, ``<loop>_step_var_s2`` for a loop."""
-    return "step_var_s2" if prefix == "step" else f"{prefix}_step_var_s2"
-
-
-def loop_stats(times_s: np.ndarray, prefix: str) -> dict[str, float]:
-    """p50/p95/p99/mean/max [ms] and variance [s²] of a sample of times [s]."""
-    nan = float("nan")
-    if times_s.size == 0:
-        return {f"{prefix}_ms_p50": nan, f"{prefix}_ms_p95": nan, f"{prefix}_ms_p99": nan,
-                f"{prefix}_ms_mean": nan, f"{prefix}_ms_max": nan, _var_name(prefix): nan}
-    p50, p95, p99 = np.percentile(times_s, [50, 95, 99]) * 1e3
-    return {
-        f"{prefix}_ms_p50": float(p50),
-        f"{prefix}_ms_p95": float(p95),
-        f"{prefix}_ms_p99": float(p99),
-        f"{prefix}_ms_mean": float(times_s.mean() * 1e3),
-        f"{prefix}_ms_max": float(times_s.max() * 1e3),
-        _var_name(prefix): float(times_s.var()),
-    }
-
-
-def deadline_misses(record: RunRecord) -> float:
-    """Steps whose whole controller time exceeded the control period [-]."""
-    period = control_period_s(record)
-    t = loop_times_s(record, "step")
-    if not math.isfinite(period):
-        return float("nan")
-    return float(np.sum(t > period))
-
-
-def realtime_factor(record: RunRecord) -> float:
-    """sim_time_s / wall_s from run.json [-] (NaN if unknown)."""
-    sim = record.meta.get("sim_time_s")
-    wall = record.meta.get("wall_s")
-    if not isinstance(sim, int | float) or not isinstance(wall, int | float) or wall <= 0:
-        return float("nan")
-    return float(sim) / float(wall)
-
-
-def timing_metrics(record: RunRecord) -> dict[str, float]:
-    """All timing metrics by name (see module doc)."""
-    out: dict[str, float] = {}
-    for loop in LOOPS:
-        out.update(loop_stats(loop_times_s(record, loop), loop))
-    n_steps = len(record.trace)
-    misses = deadline_misses(record)
-    out["deadline_misses"] = misses
-    out["deadline_miss_frac"] = misses / n_steps if n_steps else float("nan")
-    out["control_period_ms"] = control_period_s(record) * 1e3
-    for key in ("sim_time_s", "wall_s"):
-        value = record.meta.get(key)
-        out[key] = float(value) if isinstance(value, int | float) else float("nan")
-    out["realtime_factor"] = realtime_factor(record)
+def loop_times_s(trace: Trace, loop: str) -> FloatColumn:
+    """The finite per-step times [s] of a loop of :data:`LOOPS`."""
+    t = loop_column_s(trace, loop)
+    out: FloatColumn = t[np.isfinite(t)]
     return out
 
 
-def health_metrics(record: RunRecord) -> dict[str, float]:
-    """Optimiser health: residual_max, residual_final, fallbacks, guards."""
-    res = column(record, "residual")
-    finite = res[np.isfinite(res)]
-    fallback = np.nan_to_num(column(record, "fallback"))
-    guards = np.nan_to_num(column(record, "guard_fired"))
-    return {
-        "residual_max": float(finite.max()) if finite.size else float("nan"),
-        "residual_final": float(finite[-1]) if finite.size else float("nan"),
-        "fallbacks": float(np.sum(fallback != 0)),
-        "guards": float(np.sum(guards)),
-        "steps": float(len(record.trace)),
-    }
+def _var_name(loop: str) -> str:
+    return "step_var_s2" if loop == "step" else f"{loop}_step_var_s2"
+
+
+def loop_stats(times_s: np.ndarray, loop: str) -> list[Measured]:
+    """p50/p95/p99/mean/max [ms] and variance [s²] of a sample of times [s]."""
+    names = [f"{loop}_ms_p50", f"{loop}_ms_p95", f"{loop}_ms_p99", f"{loop}_ms_mean",
+             f"{loop}_ms_max"]
+    if times_s.size == 0:
+        values = [math.nan] * 5
+        var = math.nan
+    else:
+        p50, p95, p99 = np.percentile(times_s, [50, 95, 99]) * 1e3
+        values = [float(p50), float(p95), float(p99), float(times_s.mean() * 1e3),
+                  float(times_s.max() * 1e3)]
+        var = float(times_s.var())
+    out = [measured(name, value, "ms", "timing", "lower") for name, value in zip(
+        names, values, strict=True)]
+    return out + [measured(_var_name(loop), var, "s^2", "timing", "lower")]
+
+
+def _deadline_metrics(ctx: RunContext) -> list[Measured]:
+    period = ctx.period_s
+    step_s = loop_column_s(ctx.record.trace, "step")
+    if math.isfinite(period):
+        late = np.isfinite(step_s) & (step_s > period)
+        misses = float(np.sum(late))
+        increments = late.astype(np.float64)
+    else:
+        misses, increments = math.nan, None
+    frac = misses / ctx.n if ctx.n else math.nan
+    return [measured("deadline_misses", misses, "-", "timing", "lower", increments=increments),
+            measured("deadline_miss_frac", frac, "-", "timing", "lower")]
+
+
+def _run_clock_metrics(ctx: RunContext) -> list[Measured]:
+    outcome = ctx.record.outcome
+    sim, wall = float(outcome.sim_time_s), float(outcome.wall_s)
+    rtf = sim / wall if math.isfinite(wall) and wall > 0 else math.nan
+    return [measured("control_period_ms", ctx.period_s * 1e3, "ms", "health", "none"),
+            measured("sim_time_s", sim, "s", "health", "none"),
+            measured("wall_s", wall, "s", "timing", "lower"),
+            measured("realtime_factor", rtf, "-", "timing", "higher")]
+
+
+def timing_metrics(ctx: RunContext) -> list[Measured]:
+    """Every timing metric (see the module doc)."""
+    out: list[Measured] = []
+    for loop in LOOPS:
+        out += loop_stats(loop_times_s(ctx.record.trace, loop), loop)
+    return out + _deadline_metrics(ctx) + _run_clock_metrics(ctx)
+
+
+def health_metrics(ctx: RunContext) -> list[Measured]:
+    """residual_max, residual_final, fallbacks, guards, steps (see the module doc)."""
+    ctrl = ctx.record.trace.controller
+    residual = np.asarray(ctrl.residual, dtype=np.float64)
+    res_max, res_row = extreme(residual, "max")
+    finite = residual[np.isfinite(residual)]
+    fallback = np.asarray(ctrl.fallback, dtype=bool)
+    guards = np.maximum(np.asarray(ctrl.guard_fired, dtype=np.float64), 0.0)
+    return [
+        measured("residual_max", res_max, "-", "health", "lower", worst_step=res_row,
+                 series="controller.residual"),
+        measured("residual_final", float(finite[-1]) if finite.size else math.nan, "-",
+                 "health", "lower"),
+        measured("fallbacks", float(np.sum(fallback)), "-", "health", "lower",
+                 increments=fallback.astype(np.float64)),
+        measured("guards", float(np.sum(guards)), "-", "health", "lower"),
+        measured("steps", float(ctx.n), "-", "health", "none"),
+    ]
