@@ -1,27 +1,34 @@
 """Synthetic run directories for the Rerun log tests, and a tiny bird's-eye renderer.
 
 The road runs along +X: a shoulder (lane 0) and three driving lanes (1..3), 3.5 m
-wide. The ego starts in lane 1 at 25 m/s, changes to lane 2 to pass a car stalled
-in lane 1 at x = 200 m and returns; ``n_traffic`` vehicles drive in lanes 2 and 3.
+wide. The ego starts in lane 1 at 25 m/s, changes to lane 2 to pass a car stalled in
+lane 1 at x = 200 m and returns; ``n_traffic`` faster vehicles drive ahead in lanes 2
+and 3. Each record is judged by :func:`reports.metrics.evaluate` and written with
+:func:`reports.record.write_run`, as the runner does.
 """
 
 from __future__ import annotations
 
-import json
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
-from reports.run_record import (
-    CONTROLLER_ARRAYS,
-    NEIGHBOUR_COLUMNS,
-    NEIGHBOURS,
-    ROAD_JSON,
-    RUN_JSON,
-    TRACE,
-    TRACE_COLUMNS,
+from reports.metrics import evaluate
+from reports.record import (
+    ControllerArrays,
+    EgoBox,
+    LaneRecord,
+    NeighbourColumns,
+    RoadRecord,
+    RunInfo,
+    RunOutcome,
+    RunRecord,
+    StalledVehicle,
+    SumoCollision,
+    Trace,
+    write_run,
 )
 
 LANE_W = 3.5
@@ -29,160 +36,201 @@ SHOULDER_W = 2.5
 LANE_Y = {0: -(LANE_W + SHOULDER_W) / 2.0, 1: 0.0, 2: LANE_W, 3: 2 * LANE_W}
 STALLED_X = 200.0
 EGO_SPEED = 25.0
-EGO = {"length_m": 4.6, "width_m": 1.9, "cg_to_front_bumper_m": 3.5, "cg_to_box_centre_m": 1.2}
+EGO = EgoBox(length_m=4.6, width_m=1.9, cg_to_front_bumper_m=3.5, cg_to_box_centre_m=1.2)
+# the controller's own diagnostics in every synthetic trace (Trace.extra)
+EXTRA = ("steer_outer_rad", "steer_corr_rad", "torque_outer_nm", "torque_corr_nm",
+         "preview_err_t_m", "preview_err_n_m", "lateral_ref_m")
+N_PLAN, N_PREVIEW = 20, 10
 
 
 def _smooth(u: np.ndarray) -> np.ndarray:
+    """0 → 1 with continuous acceleration (a lane change within the comfort limits)."""
     u = np.clip(u, 0.0, 1.0)
-    return u * u * (3 - 2 * u)
+    return u ** 3 * (10 - 15 * u + 6 * u * u)
 
 
 def ego_xy(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Ego CG path: lane 1, over to lane 2 around the stalled car, back to lane 1."""
+    """Ego CG path: lane 1, over to lane 2 around the stalled car, back to lane 1
+    (each change over 100 m, 4 s)."""
     x = EGO_SPEED * np.asarray(t, dtype=np.float64)
-    y = LANE_W * (_smooth((x - 110.0) / 60.0) - _smooth((x - 240.0) / 60.0))
+    y = LANE_W * (_smooth((x - 100.0) / 100.0) - _smooth((x - 240.0) / 100.0))
     return x, y
 
 
-def make_run_dir(root: Path, *, scenario: str = "stalled_pass", seed: int = 1,
-                 catalog: str = "smoke", steps: int = 300, n_traffic: int = 2,
-                 dt: float = 0.1, collision: bool = False, status: str | None = None,
-                 failed_criteria: list[str] | None = None,
-                 neighbour_radius_m: float | None = 150.0) -> Path:
-    """Write a synthetic run directory ``root/<scenario>`` and return it."""
-    run_dir = Path(root) / scenario
-    run_dir.mkdir(parents=True, exist_ok=True)
+def _trace(steps: int, dt: float, seed: int, collision: bool) -> Trace:
     rng = np.random.default_rng(seed)
-    step = np.arange(steps)
-    t = (step + 1) * dt
+    tr = Trace.allocate(steps, EXTRA)
+    t = (tr.step + 1) * dt
     x, y = ego_xy(t)
     xs, ys = ego_xy(t + 1e-3)
     psi = np.arctan2(ys - y, xs - x)
-    speed = np.full(steps, EGO_SPEED)
-    lat_acc = np.gradient(np.gradient(y, t), t)
     lane_index = np.where(y > LANE_W / 2, 2, 1)
+    tr.t_s[:] = t
+    ego = tr.ego
+    ego.x_m[:], ego.y_m[:], ego.psi_rad[:] = x, y, psi
+    ego.u_mps[:], ego.v_mps[:], ego.r_radps[:] = EGO_SPEED, 0.0, np.gradient(psi, t)
+    ego.speed_mps[:] = EGO_SPEED
+    ego.long_acc_mps2[:] = 0.05 * rng.standard_normal(steps)
+    ego.lat_acc_mps2[:] = np.gradient(np.gradient(y, t), t)
+    ego.steer_rad[:], ego.torque_nm[:] = 0.02 * np.sin(t), 150 + 10 * np.sin(t)
+    ego.s_m[:], ego.lat_dev_m[:], ego.heading_err_rad[:] = x, y, psi
+    ego.lane_index[:] = lane_index
+    ego.sumo_front_x_m[:] = x + EGO.cg_to_front_bumper_m * np.cos(psi)
+    ego.sumo_front_y_m[:] = y + EGO.cg_to_front_bumper_m * np.sin(psi)
+    ego.sumo_heading_rad[:] = psi
 
-    # stalled car and its gap / TTC
-    st_len, st_wid = 4.5, 1.8
-    front = x + EGO["cg_to_front_bumper_m"]
-    gap = np.where(lane_index == 1, STALLED_X - st_len / 2 - front, 30.0)
-    gap = np.where((gap < 0) & (lane_index == 1), 0.0, np.abs(gap))
-    ttc = np.where((lane_index == 1) & (front < STALLED_X), gap / EGO_SPEED, np.nan)
+    # the stalled car's gap and SUMO's TTC
+    front = x + EGO.cg_to_front_bumper_m
+    behind = (lane_index == 1) & (front < STALLED_X - 4.5 / 2)
+    gap = np.where(behind, STALLED_X - 4.5 / 2 - front, 30.0)
     ahead = (STALLED_X - x > 0) & (STALLED_X - x < 80.0)
-    side = np.where(ahead, 1, 0)
-    reason = np.where(ahead, "left lane free", "")
-
-    geom = np.zeros(steps, bool)
-    sumo = np.zeros(steps, bool)
-    gap_vehicle = np.where(ahead, "stalled0", "")
+    safety = tr.safety
+    safety.ssm_ttc_s[:] = np.where((lane_index == 1) & (front < STALLED_X), gap / EGO_SPEED,
+                                   np.nan)
+    safety.gap_vehicle[:] = np.where(ahead, "stalled0", "")
     if collision:
-        geom[100:105] = True
-        sumo[101] = True
+        safety.geom_collision[100:105] = True
+        safety.sumo_collision[101] = True
         gap[100:105] = 0.0
-    fallback = np.zeros(steps, bool)
-    fallback[60:63] = True
+    safety.min_gap_m[:] = gap
+    decision = tr.decision
+    decision.target_speed_mps[:] = EGO_SPEED
+    decision.side[:] = np.where(ahead, 1, 0)
+    decision.side_reason[:] = np.where(ahead, "left lane free", "")
+    decision.n_obstacles[:] = ahead.astype(int)
+    decision.lat_ref_m[:] = np.where(ahead, LANE_W, 0.0)
 
-    trace: dict[str, Any] = {
-        "step": step, "t_s": t, "x_m": x, "y_m": y, "psi_rad": psi,
-        "u_mps": speed, "v_mps": np.zeros(steps), "r_radps": np.gradient(psi, t),
-        "speed_mps": speed, "target_speed_mps": np.full(steps, EGO_SPEED),
-        "long_acc_mps2": 0.05 * rng.standard_normal(steps), "lat_acc_mps2": lat_acc,
-        "steer_rad": 0.02 * np.sin(t), "torque_nm": 150 + 10 * np.sin(t),
-        "steer_outer_rad": 0.018 * np.sin(t), "steer_corr_rad": 0.002 * np.sin(t),
-        "torque_outer_nm": 140 + 10 * np.sin(t), "torque_corr_nm": np.full(steps, 10.0),
-        "s_m": x, "lat_dev_m": y, "heading_err_rad": psi, "lane_index": lane_index,
-        "min_gap_m": gap, "gap_vehicle": gap_vehicle, "geom_collision": geom,
-        "sumo_collision": sumo, "ssm_ttc_s": ttc, "side": side, "side_reason": reason,
-        "n_obstacles": ahead.astype(int), "residual": 1e-6 * (1 + rng.random(steps)),
-        "fallback": fallback, "guard_fired": np.zeros(steps, int),
-        "outer_s": 0.004 + 0.001 * rng.random(steps), "inner_s": 0.001 + 0.0005 * rng.random(steps),
-        "obstacles_s": np.full(steps, 2e-4), "controller_s": np.full(steps, 0.0065),
-        "sumo_s": 0.002 + 0.001 * rng.random(steps),
-    }
-    front = np.stack([x + EGO["cg_to_front_bumper_m"] * np.cos(psi),
-                      y + EGO["cg_to_front_bumper_m"] * np.sin(psi)])
-    trace.update({"sumo_front_x_m": front[0], "sumo_front_y_m": front[1], "sumo_heading_rad": psi})
-    for name in TRACE_COLUMNS:  # the contract may grow; unknown columns are NaN here
-        trace.setdefault(name, np.full(steps, np.nan))
-    pd.DataFrame(trace)[list(TRACE_COLUMNS)].to_parquet(run_dir / TRACE)
+    ctrl = tr.controller
+    ctrl.residual[:] = 1e-6 * (1 + rng.random(steps))
+    ctrl.fallback[60:63] = True
+    ctrl.guard_fired[:] = 0
+    ctrl.outer_s[:] = 0.004 + 0.001 * rng.random(steps)
+    ctrl.inner_s[:] = 0.001 + 0.0005 * rng.random(steps)
+    tr.timing.obstacles_s[:] = 2e-4
+    tr.timing.controller_s[:] = 0.0065
+    tr.timing.sumo_s[:] = 0.002 + 0.001 * rng.random(steps)
 
-    # neighbours: stalled car + traffic in lanes 2/3
-    rows: dict[str, list[Any]] = {k: [] for k in NEIGHBOUR_COLUMNS}
-    tr_lane = np.array([2 + (i % 2) for i in range(n_traffic)])
-    tr_x0 = np.array([40.0 + 45.0 * i for i in range(n_traffic)])
-    tr_v = np.array([21.0 + (i % 3) for i in range(n_traffic)])
-    for k in range(steps):
-        xs_k = np.concatenate([[STALLED_X], tr_x0 + tr_v * t[k]])
-        ys_k = np.concatenate([[LANE_Y[1]], [LANE_Y[int(la)] for la in tr_lane]])
-        ids = ["stalled0"] + [f"veh{i}" for i in range(n_traffic)]
-        for j in range(len(ids)):
-            if neighbour_radius_m is not None and np.hypot(xs_k[j] - x[k], ys_k[j] - y[k]) > \
-                    neighbour_radius_m:
-                continue
-            rows["step"].append(k)
-            rows["t_s"].append(t[k])
-            rows["id"].append(ids[j])
-            rows["x_m"].append(xs_k[j])
-            rows["y_m"].append(ys_k[j])
-            rows["heading_rad"].append(0.0)
-            rows["speed_mps"].append(0.0 if j == 0 else tr_v[j - 1])
-            rows["length_m"].append(st_len if j == 0 else 4.8)
-            rows["width_m"].append(st_wid if j == 0 else 1.9)
-            rows["lane_index"].append(1 if j == 0 else int(tr_lane[j - 1]))
-            rows["stalled"].append(j == 0)
-    pd.DataFrame(rows).to_parquet(run_dir / NEIGHBOURS)
+    extra = tr.extra
+    extra["steer_outer_rad"][:] = 0.018 * np.sin(t)
+    extra["steer_corr_rad"][:] = 0.002 * np.sin(t)
+    extra["torque_outer_nm"][:] = 140 + 10 * np.sin(t)
+    extra["torque_corr_nm"][:] = 10.0
+    extra["preview_err_t_m"][:] = 0.3 * np.cos(0.5 * t)
+    extra["preview_err_n_m"][:] = 0.05 * N_PREVIEW  # the preview's drift below (0.05 m/knot)
+    extra["lateral_ref_m"][:] = decision.lat_ref_m
+    return tr
 
-    # controller arrays: plan (0.2 s knots), preview (0.1 s), one ellipse for the stalled car
-    n_plan, n_prev = 20, 10
-    tp = t[:, None] + 0.2 * np.arange(n_plan + 1)[None, :]
+
+def _neighbours(t: np.ndarray, x: np.ndarray, y: np.ndarray, n_traffic: int,
+                radius_m: float | None) -> NeighbourColumns:
+    """The stalled car and traffic in lanes 2/3, driving faster than the ego."""
+    lanes = np.array([2 + (i % 2) for i in range(n_traffic)])
+    x0 = np.array([40.0 + 45.0 * i for i in range(n_traffic)])
+    speed = np.array([27.0 + (i % 3) for i in range(n_traffic)])
+    ids = ["stalled0"] + [f"veh{i}" for i in range(n_traffic)]
+    vy = np.array([LANE_Y[1]] + [LANE_Y[int(la)] for la in lanes])
+    rows: list[tuple[int, int]] = []  # (step, vehicle)
+    for k in range(len(t)):
+        vx = np.concatenate([[STALLED_X], x0 + speed * t[k]])
+        near = np.ones(len(ids), bool) if radius_m is None \
+            else np.hypot(vx - x[k], vy - y[k]) <= radius_m
+        rows += [(k, j) for j in np.flatnonzero(near)]
+    step = np.array([r[0] for r in rows], dtype=np.int64)
+    veh = np.array([r[1] for r in rows], dtype=np.int64)
+    nb = NeighbourColumns.allocate(len(rows))
+    nb.step[:], nb.t_s[:] = step, t[step]
+    nb.id[:] = [ids[j] for j in veh]
+    moving = veh > 0
+    nb.x_m[:] = np.where(moving, x0[np.maximum(veh - 1, 0)] + speed[np.maximum(veh - 1, 0)]
+                         * t[step], STALLED_X)
+    nb.y_m[:] = vy[veh]
+    nb.heading_rad[:] = 0.0
+    nb.speed_mps[:] = np.where(moving, speed[np.maximum(veh - 1, 0)], 0.0)
+    nb.length_m[:] = np.where(moving, 4.8, 4.5)
+    nb.width_m[:] = np.where(moving, 1.9, 1.8)
+    nb.lane_index[:] = np.where(moving, lanes[np.maximum(veh - 1, 0)], 1)
+    nb.stalled[:] = ~moving
+    return nb
+
+
+def _arrays(t: np.ndarray, ahead: np.ndarray) -> ControllerArrays:
+    """Plan (0.2 s knots), preview (0.1 s, drifting 0.05 m per knot to the left), one
+    ellipse for the stalled car while it is ahead."""
+    tp = t[:, None] + 0.2 * np.arange(N_PLAN + 1)[None, :]
     px, py = ego_xy(tp)
     plan = np.stack([px, py], axis=-1)
-    tq = t[:, None] + 0.1 * np.arange(n_prev + 1)[None, :]
-    qx, qy = ego_xy(tq)
-    preview = np.stack([qx, qy + 0.05 * np.arange(n_prev + 1)[None, :]], axis=-1)
     plan[:5] = np.nan  # no plan yet for the first steps (NaN padding)
-    ell = np.full((steps, 3, 6), np.nan)
+    tq = t[:, None] + 0.1 * np.arange(N_PREVIEW + 1)[None, :]
+    qx, qy = ego_xy(tq)
+    preview = np.stack([qx, qy + 0.05 * np.arange(N_PREVIEW + 1)[None, :]], axis=-1)
+    ell = np.full((len(t), 3, 6), np.nan)
     ell[:, :, 5] = 0.0
-    a_semi = st_len / 2 + EGO["length_m"] / 2 + 2.0
-    b_semi = st_wid / 2 + EGO["width_m"] / 2 + 0.4
-    ell[ahead, 0] = [STALLED_X, -0.3, 0.0, a_semi, b_semi, 1.0]
-    np.savez(run_dir / CONTROLLER_ARRAYS, plan_xy_m=plan, preview_xy_m=preview, ellipses=ell,
-             detection_radius_m=np.array(80.0))
+    ell[ahead, 0] = [STALLED_X, -0.3, 0.0, 4.5 / 2 + EGO.length_m / 2 + 2.0,
+                     1.8 / 2 + EGO.width_m / 2 + 0.4, 1.0]
+    return ControllerArrays(plan_xy_m=plan, preview_xy_m=preview, ellipses=ell,
+                            detection_radius_m=80.0)
 
-    road_len = max(1000.0, float(x[-1]) + 300.0)
-    xs_road = np.linspace(-50.0, road_len, 12)
-    lanes = []
-    for idx in range(4):
-        lanes.append({
-            "id": f"E0_{idx}", "edge_id": "E0", "index": idx,
-            "width_m": SHOULDER_W if idx == 0 else LANE_W,
-            "shape_xy_m": [[float(a), LANE_Y[idx]] for a in xs_road],
-            "allowed": ["passenger"], "is_shoulder": idx == 0, "on_route": True})
-    road = {"lanes": lanes, "reference_xy_m": [[float(a), 0.0] for a in xs_road],
-            "reference_length_m": road_len + 50.0, "route": ["E0"]}
-    (run_dir / ROAD_JSON).write_text(json.dumps(road))
 
-    if status is None:
-        status = "fail" if collision else "pass"
-    if failed_criteria is None:
-        failed_criteria = (["collision=1>0", "max_abs_lat_acc_mps2=4.1>3.0"] if collision else [])
-    meta = {
-        "scenario": scenario, "controller": "mpc_spmm",
-        "controller_options": {"horizon": n_plan},
-        "controller_params": {"horizon": n_plan, "dt_plan_s": 0.2, "q_y": 1.0},
-        "catalog": catalog, "seed": seed, "net": "sumo_nets/straight3.net.xml",
-        "duration_s": steps * dt, "step_s": dt, "target_speed_mps": EGO_SPEED,
-        "criteria": {"collision": 0, "max_abs_lat_acc_mps2": 3.0, "min_ttc_s": 1.0},
-        "status": status, "error": None, "wall_s": 3.2, "sim_time_s": steps * dt,
-        "ego": EGO,
-        "stalled": [{"id": "stalled0", "x_m": STALLED_X, "y_m": 0.0, "heading_rad": 0.0,
-                     "length_m": st_len, "width_m": st_wid, "lane_index": 1}],
-        "sumo_collisions": ([{"t_s": float(t[101]), "collider": "ego", "victim": "stalled0",
-                              "type": "collision"}] if collision else []),
-        "ssm": {}, "metrics": {"max_abs_lat_acc_mps2": float(np.max(np.abs(lat_acc)))},
-        "failed_criteria": failed_criteria,
-    }
-    (run_dir / RUN_JSON).write_text(json.dumps(meta, indent=1))
+def _road(x_end: float) -> RoadRecord:
+    road_len = max(1000.0, x_end + 300.0)
+    xs = np.linspace(-50.0, road_len, 12)
+    lanes = tuple(LaneRecord(
+        id=f"E0_{i}", edge_id="E0", index=i, width_m=SHOULDER_W if i == 0 else LANE_W,
+        shape_xy_m=np.stack([xs, np.full(xs.size, LANE_Y[i])], axis=1), allowed=("passenger",),
+        is_shoulder=i == 0) for i in range(4))
+    return RoadRecord(lanes=lanes, reference_xy_m=np.stack([xs, np.zeros(xs.size)], axis=1),
+                      reference_length_m=road_len + 50.0, route=("E0",))
+
+
+def info(scenario: str, seed: int, catalog: str, steps: int, dt: float,
+         criteria: Mapping[str, Any] | None = None) -> RunInfo:
+    return RunInfo(scenario=scenario, family="stalled", controller="mpc_spmm",
+                   catalog=f"catalogs/{catalog}.toml", catalog_name=catalog, seed=seed,
+                   net="sumo_nets/straight3.net.xml", net_name="straight3",
+                   duration_s=steps * dt, step_s=dt, target_speed_mps=EGO_SPEED,
+                   allow_shoulder=False, ego=EGO,
+                   controller_options={"horizon": N_PLAN},
+                   controller_params={"horizon": N_PLAN, "dt_plan_s": 0.2, "q_y": 1.0},
+                   criteria=dict(criteria or {}))
+
+
+def make_record(*, scenario: str = "stalled_pass", seed: int = 1, catalog: str = "smoke",
+                steps: int = 300, n_traffic: int = 2, dt: float = 0.1, collision: bool = False,
+                criteria: Mapping[str, Any] | None = None,
+                neighbour_radius_m: float | None = 150.0) -> RunRecord:
+    """A judged synthetic record (see the module doc)."""
+    tr = _trace(steps, dt, seed, collision)
+    x, y = tr.ego.x_m, tr.ego.y_m
+    ahead = (STALLED_X - x > 0) & (STALLED_X - x < 80.0)
+    stalled = StalledVehicle(id="stalled0", x_m=STALLED_X, y_m=0.0, heading_rad=0.0,
+                             length_m=4.5, width_m=1.8, lane_index=1)
+    hits = (SumoCollision(t_s=float(tr.t_s[101]), collider="ego", victim="stalled0",
+                          type="collision"),) if collision else ()
+    outcome = RunOutcome(wall_s=3.2, sim_time_s=float(tr.t_s[-1]), steps=steps,
+                         stalled=(stalled,), sumo_collisions=hits)
+    record = RunRecord(info=info(scenario, seed, catalog, steps, dt, criteria), outcome=outcome,
+                       road=_road(float(x[-1])), trace=tr,
+                       neighbours=_neighbours(tr.t_s, x, y, n_traffic, neighbour_radius_m),
+                       arrays=_arrays(tr.t_s, ahead))
+    return evaluate(record).apply(record)
+
+
+def make_run_dir(root: Path, *, scenario: str = "stalled_pass", **kw: Any) -> Path:
+    """Write a judged synthetic run directory ``root/<scenario>`` and return it."""
+    run_dir = Path(root) / scenario
+    write_run(make_record(scenario=scenario, **kw), run_dir)
+    return run_dir
+
+
+def make_error_dir(root: Path, scenario: str = "boom", error: str = "Traceback...\n"
+                   "RuntimeError: SUMO died") -> Path:
+    """A run that crashed before its first step, judged and written as the runner does."""
+    record = RunRecord(info=info(scenario, 3, "smoke", 0, 0.1),
+                       outcome=RunOutcome(end="error", error=error), road=RoadRecord(),
+                       trace=Trace.empty(), neighbours=NeighbourColumns.allocate(0),
+                       arrays=ControllerArrays())
+    run_dir = Path(root) / scenario
+    write_run(evaluate(record).apply(record), run_dir)
     return run_dir
 
 

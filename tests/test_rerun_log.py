@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import json
+import dataclasses
 import sys
 import time
 from collections import defaultdict
@@ -13,9 +13,17 @@ import numpy as np
 import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
-from rerun_fixtures import make_run_dir, read_chunks, render_birdseye, rows_at_step
+from rerun_fixtures import (
+    EXTRA,
+    make_error_dir,
+    make_run_dir,
+    read_chunks,
+    render_birdseye,
+    rows_at_step,
+)
 
-from suite.rerun.blueprint import default_blueprint
+from reports.record import Failure, load_run, write_run_json
+from suite.rerun.blueprint import ViewGeometry, default_blueprint
 from suite.rerun.log import ENTITY_PATHS, lane_edges, recording_id_for, write_rrd
 from suite.rerun.viewer import failed_runs, open_logs, resolve_logs, view_command
 
@@ -33,6 +41,8 @@ SCALAR_PATHS = [
     "/controller/torque_nm/total", "/controller/torque_nm/outer",
     "/controller/torque_nm/correction", "/controller/residual", "/timing/step_ms/outer",
     "/timing/step_ms/inner", "/timing/step_ms/controller", "/timing/step_ms/sumo",
+    "/controller/preview_err_m/t", "/controller/preview_err_m/n", "/safety/ttc_s/ahead",
+    "/comfort/accel_mps2/long_smoothed", "/comfort/yaw_rate_radps",
 ]
 STATIC_ONLY = ["/world/road/lanes", "/world/road/shoulders", "/world/road/centrelines",
                "/world/reference_path", "/world/stalled", "/docs/scenario", "/docs/controller"]
@@ -47,7 +57,9 @@ def _strict_rerun() -> Any:
 @pytest.fixture(scope="module")
 def collision_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     root = tmp_path_factory.mktemp("runs")
-    run_dir = make_run_dir(root, collision=True, steps=300, n_traffic=2)
+    # a lateral-acceleration limit the lane change exceeds, besides the collision
+    run_dir = make_run_dir(root, collision=True, steps=300, n_traffic=2,
+                           criteria={"max_abs_lat_acc_mps2": 1.0})
     return run_dir, write_rrd(run_dir)
 
 
@@ -165,6 +177,13 @@ def test_events_for_collision(collision_run: tuple[Path, Path]) -> None:
     crit = [(s, t) for s, lv, t in ev if t.startswith("criterion violated: collision")]
     assert crit and crit[0][0] == 100
     assert any(t.startswith("criterion violated: max_abs_lat_acc") for _, _, t in ev)
+    # every stored failure is logged at the step its verdict located it
+    record = load_run(collision_run[0])
+    assert record.verdict is not None and len(record.verdict.failures) == 2
+    for f in record.verdict.failures:
+        assert f.step is not None
+        assert (int(record.trace.step[f.step]), "WARN",
+                f"criterion violated: {f.text} (at t={f.t_s:.2f} s)") in ev
     assert any(t.startswith("fallback") and s == 60 and lv == "WARN" for s, lv, t in ev)
     assert any("pass left" in t and lv == "INFO" for _, lv, t in ev)
     final = [(s, lv, t) for s, lv, t in ev if t.startswith("status:")]
@@ -176,22 +195,95 @@ def test_pass_run_and_error_run(tmp_path: Path) -> None:
     ok = write_rrd(make_run_dir(tmp_path, scenario="ok", steps=30))
     ev = _events(read_chunks(ok))
     assert ev[-1][1] == "INFO" and "PASS" in ev[-1][2]
-    assert not any("COLLISION" in t for _, _, t in ev)
+    assert not any("COLLISION" in t or "criterion" in t for _, _, t in ev)
 
-    err_dir = tmp_path / "boom"
-    err_dir.mkdir()
-    (err_dir / "run.json").write_text(json.dumps({
-        "scenario": "boom", "seed": 3, "catalog": "smoke", "status": "error",
-        "error": "Traceback...\nRuntimeError: SUMO died", "failed_criteria": []}))
-    rrd = write_rrd(err_dir)
+    rrd = write_rrd(make_error_dir(tmp_path))
     ev = _events(read_chunks(rrd))
-    assert ev[-1][1] == "ERROR" and "SUMO died" in ev[-1][2]
+    assert ev[-1][1] == "ERROR" and "ERROR" in ev[-1][2] and "SUMO died" in ev[-1][2]
+    # nothing recorded: the steps criterion, an aggregate, is logged at the end
+    assert any(t.startswith("criterion violated: steps=0<1 (whole run") for _, _, t in ev)
+
+
+def test_failure_events_come_from_the_stored_verdict(tmp_path: Path) -> None:
+    """The log reads the verdict the runner stored: a failure the trace would not give
+    appears at its stored step; nothing is re-evaluated or re-located."""
+    run_dir = make_run_dir(tmp_path, steps=80)
+    record = load_run(run_dir)
+    assert record.verdict is not None and record.verdict.status == "pass"
+    stored = Failure(criterion="max_abs_yaw_rate_radps", metric="max_abs_yaw_rate_radps",
+                     value=2.5, limit=0.95, bound="max", unit="rad/s", step=42,
+                     t_s=float(record.trace.t_s[42]))
+    record.verdict = dataclasses.replace(record.verdict, status="fail", failures=(stored,))
+    write_run_json(record, run_dir)
+    ev = _events(read_chunks(write_rrd(run_dir)))
+    assert (42, "WARN", "criterion violated: max_abs_yaw_rate_radps=2.5>0.95 (at t=4.30 s)") \
+        in ev
+    assert ev[-1][1] == "ERROR" and "FAIL" in ev[-1][2]
+
+
+def _scalars(chunks: list[Any], entity: str) -> dict[int, float]:
+    """step -> value of a Scalars entity."""
+    out: dict[int, float] = {}
+    for c in chunks:
+        if c.entity_path != entity or c.is_static:
+            continue
+        rb = c.to_record_batch()
+        for step, value in zip(rb.column("step").to_pylist(),
+                               rb.column("Scalars:scalars").to_pylist(), strict=True):
+            out[int(step)] = float(value[0])
+    return out
+
+
+def test_every_controller_diagnostic_is_logged(collision_run: tuple[Path, Path]) -> None:
+    run_dir, rrd = collision_run
+    record = load_run(run_dir)
+    assert tuple(record.trace.extra) == EXTRA
+    chunks = read_chunks(rrd)
+    for name, values in record.trace.extra.items():
+        logged = _scalars(chunks, f"/controller/{name}")
+        assert sorted(logged) == list(range(300)), name
+        np.testing.assert_allclose([logged[k] for k in range(300)], values, err_msg=name)
+    # the preview-error scalars are the recorded components
+    np.testing.assert_allclose(
+        [_scalars(chunks, "/controller/preview_err_m/t")[k] for k in range(300)],
+        record.trace.extra["preview_err_t_m"])
+
+
+def test_preview_error_arrow_from_the_recorded_components(
+        collision_run: tuple[Path, Path]) -> None:
+    run_dir, rrd = collision_run
+    record = load_run(run_dir)
+    chunks = read_chunks(rrd)
+    for step in (10, 60, 150):
+        prev = record.arrays.preview_xy_m[step]
+        d = (prev[-1] - prev[-2]) / np.hypot(*(prev[-1] - prev[-2]))
+        expected = (record.trace.extra["preview_err_t_m"][step] * d
+                    + record.trace.extra["preview_err_n_m"][step] * np.array([-d[1], d[0]]))
+        (origin,) = rows_at_step(chunks, "/world/preview_error", step, "Arrows2D:origins")
+        (vector,) = rows_at_step(chunks, "/world/preview_error", step, "Arrows2D:vectors")
+        np.testing.assert_allclose(origin, prev[-1], rtol=1e-6)
+        np.testing.assert_allclose(vector, expected, rtol=1e-5, atol=1e-6)
+
+
+def test_verdict_series_are_logged(collision_run: tuple[Path, Path]) -> None:
+    run_dir, rrd = collision_run
+    record = load_run(run_dir)
+    assert record.series is not None
+    chunks = read_chunks(rrd)
+    jerk = _scalars(chunks, "/comfort/jerk_mps3/total")
+    np.testing.assert_allclose([jerk[k] for k in range(300)], record.series.jerk_mps3,
+                               rtol=1e-6)
+    ttc = _scalars(chunks, "/safety/ttc_s/ahead")  # +inf (no conflict) is left out
+    finite = np.flatnonzero(np.isfinite(record.series.ttc_s))
+    assert sorted(ttc) == finite.tolist()
 
 
 def test_blueprint_builds() -> None:
-    bp = default_blueprint(ego_start_xy=(0.0, 0.0), ego_heading_rad=np.pi,
-                           road_bounds=(0.0, 100.0, -5.0, 5.0))
+    bp = default_blueprint(ViewGeometry(ego_start_xy=(0.0, 0.0), ego_heading_rad=np.pi,
+                                        road_bounds=(0.0, 100.0, -5.0, 5.0),
+                                        diagnostics=("preview_err_t_m",)))
     assert bp is not None
+    assert default_blueprint() is not None
 
 
 def test_write_cost_1500_steps_30_neighbours(tmp_path: Path) -> None:
@@ -230,20 +322,24 @@ def test_view_command() -> None:
 def test_failed_runs_and_open_logs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                    capsys: pytest.CaptureFixture[str]) -> None:
     make_run_dir(tmp_path, scenario="good", steps=20)
-    bad = make_run_dir(tmp_path, scenario="bad", steps=20, collision=False, status="fail",
-                       failed_criteria=["min_ttc_s=0.5<1.0"])
-    err = tmp_path / "err"
-    err.mkdir()
-    (err / "run.json").write_text(json.dumps({"scenario": "err", "status": "error"}))
-    assert failed_runs(tmp_path) == [bad, err]
+    # approaching the stalled car (TTC > 3 s) fails a 5 s TTC limit
+    bad = make_run_dir(tmp_path, scenario="bad", steps=60, criteria={"min_ttc_s": 5.0})
+    assert load_run(bad).status == "fail"
+    err = make_error_dir(tmp_path, "err")
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    (broken / "run.json").write_text("{")
+    assert failed_runs(tmp_path) == [bad, broken, err]
 
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     assert open_logs([], failed_only_from=tmp_path) == 0
-    out = capsys.readouterr().out
+    captured = capsys.readouterr()
+    out = captured.out
     assert "rerun_cli" in out and str(bad / "run.rrd") in out and str(err / "run.rrd") in out
     assert (bad / "run.rrd").is_file()  # written on demand from the recorded arrays
     assert "good" not in out
+    assert "broken: cannot write run.rrd" in captured.err  # reported, the others open
 
     assert resolve_logs([tmp_path / "good"]) == [tmp_path / "good" / "run.rrd"]
     assert len(resolve_logs([tmp_path])) == 3

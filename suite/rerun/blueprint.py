@@ -5,6 +5,7 @@ Layout (left two thirds / right third)::
     +-------------------------------------+----------------------+
     | [Follow ego] [Whole road]  (tabs)   | [Safety] [Comfort]   |
     |  bird's-eye 2D view of /world       | [Controller] [Timing]|
+    |                                     | [Diagnostics]        |
     |                                     |  time-series panels  |
     +------------------+------------------+                      |
     | events (TextLog) | scenario / ctrl  |                      |
@@ -28,6 +29,8 @@ frame (``/world/view/north_up``) with bounds fitted to the road.
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
 from typing import Any
 
 import rerun as rr
@@ -52,18 +55,30 @@ def _ts(origin: str, name: str, **kwargs: Any) -> rrb.TimeSeriesView:
     return rrb.TimeSeriesView(origin=origin, name=name, **kwargs)
 
 
-def default_blueprint(*, ego_start_xy: tuple[float, float] | None = None,
-                      ego_heading_rad: float = 0.0,
-                      road_bounds: tuple[float, float, float, float] | None = None
-                      ) -> rrb.Blueprint:
-    """The blueprint the viewer opens a run with.
+@dataclass(frozen=True)
+class ViewGeometry:
+    """What the layout depends on. ego_start_xy [m] / ego_heading_rad only choose which
+    way "ahead" is (the follow view shows more road ahead than behind); road_bounds =
+    (xmin, xmax, ymin, ymax) [m] fits the whole-road tab; diagnostics are the
+    controller's ``Trace.extra`` names, one panel each in the "Diagnostics" tab."""
 
-    ego_start_xy / ego_heading_rad only choose which way "ahead" is (the follow view
-    shows more road ahead than behind); road_bounds = (xmin, xmax, ymin, ymax) fits
-    the whole-road tab.
-    """
-    import math
+    ego_start_xy: tuple[float, float] | None = None
+    ego_heading_rad: float = 0.0
+    road_bounds: tuple[float, float, float, float] | None = None
+    diagnostics: tuple[str, ...] = ()
 
+
+def _diagnostics(names: tuple[str, ...]) -> rrb.Container | None:
+    if not names:
+        return None
+    return rrb.Vertical(*(_ts(f"/controller/{name}", name) for name in names),
+                        name="Diagnostics")
+
+
+def default_blueprint(view: ViewGeometry | None = None) -> rrb.Blueprint:
+    """The blueprint the viewer opens a run with (see the module doc)."""
+    view = view if view is not None else ViewGeometry()
+    ego_heading_rad, road_bounds = view.ego_heading_rad, view.road_bounds
     ahead_sign = -1.0 if math.cos(ego_heading_rad) < 0 else 1.0
     if ahead_sign > 0:
         x_range = (-FOLLOW_BEHIND_M, FOLLOW_AHEAD_M)
@@ -96,17 +111,20 @@ def default_blueprint(*, ego_start_xy: tuple[float, float] | None = None,
     world = rrb.Tabs(follow, overview, active_tab=0, name="Bird's eye")
 
     safety = rrb.Vertical(
-        _ts("/safety/ttc_s", "TTC [s] (SUMO SSM)"),
+        _ts("/safety/ttc_s", "TTC [s] (SUMO SSM; verdict ahead / behind)"),
         _ts("/safety/min_gap_m", "Min gap [m]"),
         _ts("/safety/collision", "Collision"),
+        _ts("/safety/offroad_excess_m", "Corner beyond the drivable lanes [m]"),
+        _ts("/safety/ellipse_margin", "Obstacle-ellipse margin [-]"),
         _ts("/controller/speed_mps", "Speed vs target [m/s]"),
-        row_shares=[3, 3, 1, 2],
+        row_shares=[3, 3, 1, 2, 2, 2],
         name="Safety",
     )
     comfort = rrb.Vertical(
-        _ts("/comfort/accel_mps2", "Acceleration [m/s²]"),
+        _ts("/comfort/accel_mps2", "Acceleration [m/s²] (recorded; smoothed = verdict)"),
         _ts("/comfort/jerk_mps3", "Jerk [m/s³]"),
         _ts("/comfort/yaw_rate_radps", "Yaw rate [rad/s]"),
+        _ts("/comfort/yaw_acc_radps2", "Yaw acceleration [rad/s²]"),
         name="Comfort",
     )
     controller = rrb.Vertical(
@@ -124,7 +142,9 @@ def default_blueprint(*, ego_start_xy: tuple[float, float] | None = None,
         _ts("/timing/step_ms", "Step time per loop [ms]"),
         name="Timing",
     )
-    plots = rrb.Tabs(safety, comfort, controller, timing, active_tab=0, name="Plots")
+    diagnostics = _diagnostics(view.diagnostics)
+    tabs = [safety, comfort, controller, timing] + ([diagnostics] if diagnostics else [])
+    plots = rrb.Tabs(*tabs, active_tab=0, name="Plots")
 
     text = rrb.Horizontal(
         rrb.TextLogView(origin="/events", name="Events"),

@@ -8,7 +8,6 @@ machine with a screen (after copying the files, or with the same paths mounted).
 
 from __future__ import annotations
 
-import json
 import os
 import shlex
 import subprocess
@@ -16,7 +15,9 @@ import sys
 from collections.abc import Iterable
 from pathlib import Path
 
-from reports.run_record import RRD, RUN_JSON, iter_run_dirs
+from reports.record import RRD, RUN_JSON, RecordError, iter_run_dirs
+from reports.record.meta import END_OK
+from reports.record.run import read_run_json
 
 
 def view_command(paths: list[Path]) -> list[str]:
@@ -24,17 +25,21 @@ def view_command(paths: list[Path]) -> list[str]:
     return [sys.executable, "-m", "rerun_cli", *(str(Path(p)) for p in paths)]
 
 
+def run_status(run_dir: Path) -> str:
+    """pass | fail | error | timeout of a run directory from its run.json (an unreadable
+    one, or a run never judged, is 'error')."""
+    try:
+        _, outcome, verdict = read_run_json(run_dir)
+    except RecordError:
+        return "error"
+    if outcome.end != END_OK:
+        return outcome.end
+    return verdict.status if verdict is not None else "error"
+
+
 def failed_runs(out_dir: Path) -> list[Path]:
     """Run directories under a catalog output directory whose status is not 'pass'."""
-    failed = []
-    for run_dir in iter_run_dirs(out_dir):
-        try:
-            status = json.loads((run_dir / RUN_JSON).read_text()).get("status")
-        except (OSError, ValueError):
-            status = None
-        if status != "pass":
-            failed.append(run_dir)
-    return failed
+    return [run_dir for run_dir in iter_run_dirs(out_dir) if run_status(run_dir) != "pass"]
 
 
 def _rrd_for_run(run_dir: Path) -> Path | None:

@@ -1,0 +1,131 @@
+"""The time series of a recording (``Scalars`` with static ``SeriesLines`` names/colours).
+
+``/safety/...``      SUMO SSM TTC (``/safety/ttc_s``) and ours, the verdict's, ahead and
+                     behind (``/safety/ttc_s/{ahead,behind}``), gap, collision flag,
+                     off-road excess and ellipse margin (the verdict's series)
+``/comfort/...``     body accelerations as recorded and as the verdict smoothed them,
+                     jerks, yaw rate and yaw acceleration (the verdict's series)
+``/controller/...``  speed and set-point, lateral deviation, heading error, steering and
+                     torque (total; outer and correction when the controller records
+                     them), residual, preview error, pass side, fallback, obstacles;
+                     and every controller diagnostic of ``Trace.extra`` at
+                     ``/controller/<name>`` in its own unit
+``/timing/...``      time per loop [ms]
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from suite.rerun.paths import CONTROLLER
+from suite.rerun.stream import Colour, RunLog
+
+BLUE = (80, 170, 255, 255)
+ORANGE = (255, 150, 60, 255)
+PURPLE = (160, 120, 255, 255)
+WHITE = (255, 255, 255, 255)
+GREY = (200, 200, 200, 255)
+MAGENTA = (230, 80, 230, 255)
+RED = (255, 60, 60, 255)
+GREEN = (60, 230, 120, 255)
+PALETTE = (BLUE, ORANGE, GREEN, PURPLE, MAGENTA, GREY)
+
+
+def log_safety(log: RunLog) -> None:
+    trace, series = log.record.trace, log.record.series
+    s = log.scalar
+    s("/safety/ttc_s", trace.safety.ssm_ttc_s, "TTC [s] (SUMO SSM)", (255, 90, 90, 255))
+    s("/safety/min_gap_m", trace.safety.min_gap_m, "min gap [m]", (255, 200, 60, 255))
+    collided = trace.safety.geom_collision | trace.safety.sumo_collision
+    s("/safety/collision", collided.astype(float), "collision", (255, 0, 0, 255))
+    if series is None:
+        return
+    s("/safety/ttc_s/ahead", series.ttc_s, "TTC ahead [s] (verdict)", ORANGE)
+    s("/safety/ttc_s/behind", series.ttc_rear_s, "TTC behind [s] (verdict)", PURPLE)
+    s("/safety/offroad_excess_m", series.offroad_excess_m, "corner beyond the lanes [m]",
+      ORANGE)
+    s("/safety/ellipse_margin", series.ellipse_margin, "ellipse margin (< 0 inside)", MAGENTA)
+
+
+def log_comfort(log: RunLog) -> None:
+    ego, series = log.record.trace.ego, log.record.series
+    s = log.scalar
+    s("/comfort/accel_mps2/long", ego.long_acc_mps2, "long acc [m/s²]", BLUE)
+    s("/comfort/accel_mps2/lat", ego.lat_acc_mps2, "lat acc [m/s²]", ORANGE)
+    if series is None:
+        return
+    s("/comfort/accel_mps2/long_smoothed", series.long_acc_mps2,
+      "long acc, smoothed (verdict) [m/s²]", (40, 90, 200, 255))
+    s("/comfort/accel_mps2/lat_smoothed", series.lat_acc_mps2,
+      "lat acc, smoothed (verdict) [m/s²]", (200, 100, 30, 255))
+    s("/comfort/jerk_mps3/long", series.long_jerk_mps3, "long jerk [m/s³]", BLUE)
+    s("/comfort/jerk_mps3/total", series.jerk_mps3, "|jerk| [m/s³]", ORANGE)
+    s("/comfort/yaw_rate_radps", series.yaw_rate_radps, "yaw rate [rad/s]", PURPLE)
+    s("/comfort/yaw_acc_radps2", series.yaw_acc_radps2, "yaw acc [rad/s²]", MAGENTA)
+
+
+def _optional(log: RunLog, name: str) -> np.ndarray | None:
+    return log.record.trace.extra.get(name)
+
+
+def log_controller(log: RunLog) -> None:
+    trace = log.record.trace
+    s = log.scalar
+    s("/controller/speed_mps/actual", trace.ego.speed_mps, "speed [m/s]", GREEN)
+    s("/controller/speed_mps/target", trace.decision.target_speed_mps, "target [m/s]", GREY)
+    s("/controller/lat_dev_m", trace.ego.lat_dev_m, "lateral deviation [m]", BLUE)
+    s("/controller/heading_err_deg", np.degrees(trace.ego.heading_err_rad),
+      "heading error [deg]", PURPLE)
+    s("/controller/steer_deg/total", np.degrees(trace.ego.steer_rad), "steer total [deg]", WHITE)
+    s("/controller/torque_nm/total", trace.ego.torque_nm, "torque total [N m]", WHITE)
+    # the two-loop controller's split of its command, when it records it
+    for path, name, label, scale, colour in (
+            ("steer_deg/outer", "steer_outer_rad", "steer outer [deg]", 180 / np.pi, BLUE),
+            ("steer_deg/correction", "steer_corr_rad", "steer correction [deg]", 180 / np.pi,
+             ORANGE),
+            ("torque_nm/outer", "torque_outer_nm", "torque outer [N m]", 1.0, BLUE),
+            ("torque_nm/correction", "torque_corr_nm", "torque correction [N m]", 1.0, ORANGE),
+            ("preview_err_m/t", "preview_err_t_m", "preview err t [m]", 1.0, BLUE),
+            ("preview_err_m/n", "preview_err_n_m", "preview err n [m]", 1.0, ORANGE)):
+        values = _optional(log, name)
+        if values is not None:
+            s(f"{CONTROLLER}/{path}", scale * values, label, colour)
+    s("/controller/residual", trace.controller.residual, "residual E", MAGENTA)
+    s("/controller/side", trace.decision.side.astype(float), "pass side (+1 L, -1 R, 2 follow)",
+      MAGENTA)
+    s("/controller/fallback", trace.controller.fallback.astype(float), "fallback", RED)
+    s("/controller/n_obstacles", np.maximum(trace.decision.n_obstacles, 0).astype(float),
+      "obstacles", GREY)
+    log_diagnostics(log)
+
+
+def diagnostic_path(name: str) -> str:
+    """Entity path of a controller diagnostic (a ``Trace.extra`` column)."""
+    return f"{CONTROLLER}/{name}"
+
+
+def log_diagnostics(log: RunLog) -> None:
+    """Every ``Trace.extra`` column as a scalar at ``/controller/<name>``."""
+    for i, (name, values) in enumerate(log.record.trace.extra.items()):
+        log.scalar(diagnostic_path(name), values, name, PALETTE[i % len(PALETTE)])
+
+
+def log_timing(log: RunLog) -> None:
+    trace = log.record.trace
+    loops: tuple[tuple[str, np.ndarray, Colour], ...] = (
+        ("outer", trace.controller.outer_s, BLUE), ("inner", trace.controller.inner_s, ORANGE),
+        ("obstacles", trace.timing.obstacles_s, PURPLE),
+        ("controller", trace.timing.controller_s, WHITE), ("sumo", trace.timing.sumo_s, GREEN))
+    for name, seconds, colour in loops:
+        log.scalar(f"/timing/step_ms/{name}", 1e3 * seconds, f"{name} [ms]", colour)
+
+
+def log_scalars(log: RunLog) -> None:
+    """Every time series of the recording (see the module doc)."""
+    if not log.n:
+        return
+    log_safety(log)
+    log_comfort(log)
+    log_controller(log)
+    log_timing(log)
+
