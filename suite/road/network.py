@@ -39,6 +39,7 @@ import sumolib
 
 __all__ = [
     "LaneInfo",
+    "LaneLink",
     "RoadNetwork",
     "RoadNetworkError",
     "centreline_arclength",
@@ -106,6 +107,21 @@ class LaneInfo:
             "allows_passenger": self.allows_passenger,
             "speed_mps": self.speed_mps,
         }
+
+
+@dataclass(frozen=True)
+class LaneLink:
+    """A lane connection: lane ``from_index`` of an edge to lane ``to_index`` of
+    ``to_edge_id`` through the internal lanes ``via_ids`` (their shapes (M, 2) and widths
+    [m]); ``direction`` is SUMO's ('s' straight, 't' turnaround, ...)."""
+
+    from_index: int
+    to_edge_id: str
+    to_index: int
+    via_ids: tuple[str, ...]
+    via_shapes: tuple[np.ndarray, ...] = field(compare=False)
+    via_widths_m: tuple[float, ...] = ()
+    direction: str = ""
 
 
 class RoadNetwork:
@@ -231,6 +247,24 @@ class RoadNetwork:
                 continue
             out.append(to_edge.getID())
         return sorted(set(out))
+
+    def lane_links(self, edge_id: str) -> list[LaneLink]:
+        """Every lane connection leaving ``edge_id``: from which lane, to which edge and
+        lane, through which internal junction lanes (shapes in driving order)."""
+        out = []
+        for lane in self._edge(edge_id).getLanes():
+            for conn in lane.getOutgoing():
+                to_lane = conn.getToLane()
+                via = self._via_chain(conn)
+                out.append(LaneLink(
+                    from_index=int(lane.getIndex()), to_edge_id=str(conn.getTo().getID()),
+                    to_index=int(to_lane.getIndex()),
+                    via_ids=tuple(str(v.getID()) for v in via),
+                    via_shapes=tuple(np.asarray(v.getShape(), dtype=np.float64).reshape(-1, 2)
+                                     for v in via),
+                    via_widths_m=tuple(float(v.getWidth()) for v in via),
+                    direction=str(conn.getDirection())))
+        return out
 
     # ------------------------------------------------------------------ routes
     def default_route(self) -> tuple[str, ...]:
