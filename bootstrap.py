@@ -2,7 +2,8 @@
 """Set up hwyeval on a fresh machine (only Python 3.11 + pip needed), then act.
 
     python3 bootstrap.py demo   # venv + install, then run catalogs/demo.toml end to end
-    python3 bootstrap.py test   # venv + install (with test extras, Chromium), then pytest
+    python3 bootstrap.py test   # venv + install (test extras, Chromium), then lint-imports,
+                                # ruff, mypy --strict and pytest
 
 The virtual environment lives in .venv; installation is skipped when
 pyproject.toml has not changed since the last one (a hash stamp in .venv).
@@ -71,10 +72,20 @@ def main(argv: list[str]) -> int:
     if action == "test":
         ensure_venv("test,baselines,cluster")
         ensure_chromium()
+        # Architecture, lint and types first (seconds), then the tests; all of them run
+        # whatever the others say, and any failure fails the command.
+        checks = [[str(VENV / "bin" / "lint-imports")],
+                  [str(VENV / "bin" / "ruff"), "check", "."],
+                  [str(VENV / "bin" / "mypy"), "suite", "reports", "controllers", "sumo_nets"]]
+        failed = [c[0].rsplit("/", 1)[-1] for c in checks
+                  if subprocess.run(c, cwd=ROOT).returncode != 0]
         code = subprocess.run([str(PY), "-m", "pytest", *argv[2:]], cwd=ROOT).returncode
         if code == 5:
             print("pytest collected no tests: that is a failure here", file=sys.stderr)
             return 1
+        if failed:
+            print(f"failed checks: {', '.join(failed)}", file=sys.stderr)
+            return code or 1
         return code
     print(__doc__, file=sys.stderr)
     return 2

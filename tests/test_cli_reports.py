@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import subprocess
@@ -12,6 +11,7 @@ from pathlib import Path
 import pandas as pd
 
 import tests.synthetic_runs as sr
+from suite.rerun.viewer import run_status
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -61,8 +61,7 @@ def test_view_without_display_prints_the_command(tmp_path: Path) -> None:
     proc = hwyeval("view", str(out), "--failed", env=env)
     assert proc.returncode == 0, proc.stderr
     assert "rerun" in proc.stdout
-    statuses = {d.name: json.loads((d / "run.json").read_text())["status"]
-                for d in out.iterdir() if (d / "run.json").is_file()}
+    statuses = {d.name: run_status(d) for d in out.iterdir() if (d / "run.json").is_file()}
     failed = [name for name, status in statuses.items() if status != "pass"]
     passed = [name for name, status in statuses.items() if status == "pass"]
     assert failed and passed

@@ -12,6 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from reports.record import load_run
+
 pytestmark = pytest.mark.sumo
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -96,8 +98,9 @@ def test_lane_keep_driven_into_stalled_car_collides_and_fails(catalog_run) -> No
     assert row["min_gap_m"] == 0.0
     # It hit the car: progress stops near stall position minus the ego's start.
     assert 200.0 < row["progress_m"] < 260.0
-    meta = json.loads((out / "lane_keep_into_stalled_car" / "run.json").read_text())
-    assert any("stalled0" in (c["victim"], c["collider"]) for c in meta["sumo_collisions"])
+    rec = load_run(out / "lane_keep_into_stalled_car", trace=False, neighbours=False,
+                   arrays=False, series=False)
+    assert any("stalled0" in (c.victim, c.collider) for c in rec.outcome.sumo_collisions)
 
 
 def test_lane_keep_on_free_road_with_traffic_passes(catalog_run) -> None:
@@ -112,8 +115,9 @@ def test_lane_keep_on_free_road_with_traffic_passes(catalog_run) -> None:
 def test_ego_pose_in_sumo_equals_the_plant_every_step(catalog_run) -> None:
     out, _ = catalog_run
     trace = pd.read_parquet(out / "lane_keep_free_curve_with_traffic" / "trace.parquet")
-    meta = json.loads((out / "lane_keep_free_curve_with_traffic" / "run.json").read_text())
-    d = meta["ego"]["cg_to_front_bumper_m"]
+    rec = load_run(out / "lane_keep_free_curve_with_traffic", trace=False, neighbours=False,
+                   arrays=False, series=False)
+    d = rec.info.ego.cg_to_front_bumper_m
     fx = trace["x_m"] + d * np.cos(trace["psi_rad"])
     fy = trace["y_m"] + d * np.sin(trace["psi_rad"])
     err = np.hypot(fx - trace["sumo_front_x_m"], fy - trace["sumo_front_y_m"])

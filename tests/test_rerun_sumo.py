@@ -91,3 +91,25 @@ def test_birdseye_picture_from_the_log(two_runs, tmp_path: Path) -> None:
     passing = int(trace.loc[trace["n_obstacles"] > 0, "step"].iloc[len(trace) // 10])
     png = render_birdseye(run_dir / "run.rrd", passing, tmp_path / "birdseye.png")
     assert png.stat().st_size > 1000
+
+
+def test_preview_error_reaches_the_trace_and_the_log(two_runs) -> None:
+    """Every diagnostic two_loop declares is a trace column; the preview error is logged."""
+    import dataclasses
+
+    from controllers.two_loop.diagnostics import TwoLoopDiagnostics
+
+    run_dir, _ = two_runs
+    trace = pd.read_parquet(run_dir / "trace.parquet")
+    for f in dataclasses.fields(TwoLoopDiagnostics):
+        assert f.name in trace.columns, f.name
+    for col in ("preview_err_t_m", "preview_err_n_m"):
+        values = trace[col].to_numpy()
+        assert values.size == len(trace) and (abs(values) > 1e-6).any()
+    chunks = read_chunks(run_dir / "run.rrd")
+    rows = {c.entity_path: 0 for c in chunks}
+    for c in chunks:
+        if not c.is_static:
+            rows[c.entity_path] += c.num_rows
+    logged = {p: n for p, n in rows.items() if p.startswith("/controller/preview_err_m/")}
+    assert logged and all(n == len(trace) for n in logged.values()), logged

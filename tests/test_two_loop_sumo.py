@@ -8,13 +8,14 @@ allowed, otherwise follow and stop).
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
+
+from reports.record import load_run
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 
@@ -46,10 +47,11 @@ def test_every_bundled_net_is_covered_at_20_25_30(acceptance) -> None:
     nets = set()
     speeds = set()
     for name in results.index:
-        meta = json.loads((out / name / "run.json").read_text())
-        nets.add(meta["net_name"])
+        info = load_run(out / name, trace=False, neighbours=False, arrays=False,
+                        series=False).info
+        nets.add(info.net_name)
         if name.startswith("stall_") and "__speed" in name:
-            speeds.add(meta["scenario_spec"]["ego"]["speed_mps"])
+            speeds.add(info.scenario_spec["ego"]["speed_mps"])
     assert set(sumo_nets.available()) <= nets
     assert {20.0, 25.0, 30.0} <= speeds
 

@@ -102,8 +102,9 @@ class RunRecord:
         return self.verdict.status if self.verdict is not None else "error"
 
 
-def write_run(record: RunRecord, run_dir: Path) -> None:
-    """Write every file of ``record`` into ``run_dir`` (run.json last, atomically)."""
+def write_run(record: RunRecord, run_dir: Path, *, run_json: bool = True) -> None:
+    """Write every file of ``record`` into ``run_dir`` (run.json last, atomically; not at
+    all with ``run_json=False``, for a writer that adds files first)."""
     run_dir.mkdir(parents=True, exist_ok=True)
     write_json_atomic(run_dir / ROAD_JSON, record.road.as_plain())
     record.trace.to_frame().to_parquet(run_dir / TRACE, index=False)
@@ -116,7 +117,8 @@ def write_run(record: RunRecord, run_dir: Path) -> None:
                         detection_radius_m=np.array(arr.detection_radius_m))
     if record.outcome.error:
         (run_dir / TRACEBACK).write_text(record.outcome.error)
-    write_run_json(record, run_dir)
+    if run_json:
+        write_run_json(record, run_dir)
 
 
 def write_run_json(record: RunRecord, run_dir: Path) -> None:

@@ -15,7 +15,7 @@ import reports.metrics  # noqa: F401 - scipy.signal and friends
 import suite.rerun.log  # noqa: F401 - rerun
 from controllers import registry
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
-from controllers.protocol import Observation, Obstacles, ScenarioContext
+from controllers.protocol import Observation, Obstacles, ScenarioContext, SumoDriverModel
 
 
 def warm_up(steps: int = 3) -> None:
@@ -26,6 +26,8 @@ def warm_up(steps: int = 3) -> None:
                           np.array([10.0]), np.array([2.6]))
     for name in ("two_loop", "lane_keep"):
         controller = registry.make(name, {})
+        if isinstance(controller, SumoDriverModel):
+            continue
         controller.reset(ScenarioContext(reference, 3.5, 20.0, 0.02, vehicle, state))
         plant = SingleTrackPlant(vehicle, state)
         for k in range(steps):

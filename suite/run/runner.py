@@ -213,7 +213,8 @@ def _record(scenario: Scenario, options: RunOptions, vehicle: VehicleParams, run
 
 
 def _judge_and_write(record: RunRecord, run_dir: Path, options: RunOptions) -> RunRecord:
-    """Evaluate once, write the run directory, then the Rerun log (never raises)."""
+    """Evaluate once, write the run's files, log it to Rerun from memory, then run.json
+    (once, last: a reader never sees a run.json whose files are not all there)."""
     from reports.metrics import evaluate
 
     try:
@@ -225,21 +226,19 @@ def _judge_and_write(record: RunRecord, run_dir: Path, options: RunOptions) -> R
             + traceback.format_exc()))
     record.run_dir = run_dir
     try:
-        write_run(record, run_dir)
+        write_run(record, run_dir, run_json=False)
     except Exception:  # noqa: BLE001
         record.outcome = replace(record.outcome, end="error", error=(
             (record.outcome.error or "") + "\nwhile writing the run:\n" + traceback.format_exc()))
-        write_run_json(record, run_dir)
-        return record
     if options.write_rrd:
         t0 = time.perf_counter()
         try:
-            from suite.rerun.log import write_rrd
+            from suite.rerun.log import log_record
 
-            write_rrd(run_dir, catalog_name=options.catalog_name or None)
+            log_record(record, run_dir / RRD, catalog_name=options.catalog_name or None)
             record.outcome = replace(record.outcome, log_s=time.perf_counter() - t0)
         except Exception:  # noqa: BLE001 - a broken log must not lose the verdict
             (run_dir / RRD).unlink(missing_ok=True)
             record.outcome = replace(record.outcome, log_error=traceback.format_exc())
-        write_run_json(record, run_dir)
+    write_run_json(record, run_dir)
     return record

@@ -10,6 +10,7 @@ import numpy as np
 
 from controllers.plant.vehicle_model import VehicleParams
 from suite.catalog import load_catalog
+from suite.road.lanes import LaneContextMap
 from suite.road.network import RoadNetwork
 from suite.world.sumo import SumoWorld
 
@@ -19,7 +20,7 @@ def main() -> None:
     sc = {s.name: s for s in load_catalog(catalog).scenarios}[name]
     net = RoadNetwork.load(sc.net_path)
     world = SumoWorld(sc, net, VehicleParams(), work, externally_driven=False)
-    world.start()
+    world.start(None)
     import libsumo
 
     stall_xy = []
@@ -29,7 +30,7 @@ def main() -> None:
     speeds = []
     sx0 = None
     for _ in range(int(sc.duration_s / sc.step_s)):
-        world.step()
+        world.step(None)
         sx, sy = libsumo.vehicle.getPosition("stalled0")
         sx0 = sx if sx0 is None else sx0
         stall_xy.append((sx, sy))
@@ -44,7 +45,9 @@ def main() -> None:
                 behind.add(vid)
             if vid in behind and x > sx + 5:
                 passed.add(vid)
-    lanes = world.lane_context()
+    ego_edge = libsumo.vehicle.getRoadID("ego")
+    ego_pos = net.route_edge_starts_m(sc.route)[ego_edge] + libsumo.vehicle.getLanePosition("ego")
+    lanes = LaneContextMap(net, sc.route, sc.ego.lane).at(ego_pos)
     xy = np.array(stall_xy)
     world.close()
     print(json.dumps({
@@ -53,7 +56,8 @@ def main() -> None:
         "hazard_always_on": all(s & 4 for s in signals),
         "behind": len(behind), "passed": len(passed),
         "lane_context": [{"index": li.index, "width_m": li.width_m, "shoulder": li.is_shoulder,
-                          "passenger": li.allows_passenger, "edge": li.edge_id} for li in lanes],
+                          "passenger": li.allows_passenger}
+                         for _, li in sorted(lanes.slots.items())],
     }))
 
 
