@@ -244,7 +244,10 @@ def smooth_in_tube(res: Resampled, params: TubeParams, half_width_m: FloatArray 
     for _ in range(2):  # the second pass re-bases on the first solution
         normals = _normals(base)
         o0 = _offsets_to_polyline(base, normals, res.points)
-        offsets = _solve(base, normals, o0 - half, o0 + half, params)
+        # 1 mm inside the tube: the bound is along the base normal, the deviation is the
+        # true distance to the polyline (equal to first order, not exactly).
+        inner = np.maximum(half - 1e-3, 0.5 * half)
+        offsets = _solve(base, normals, o0 - inner, o0 + inner, params)
         curve = base + normals * offsets[:, None]
         base = curve
     normals = _normals(curve)

@@ -1,0 +1,160 @@
+"""Reference geometry and lane identity on real motorway nets and bundled ones (no SUMO run).
+
+The real nets (OSM via netconvert) live beside the repository in ../shared/nets_real.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.optimize import lsq_linear
+
+import sumo_nets
+from suite.road.lane_graph import RouteLaneGraph
+from suite.road.network import RoadNetwork
+from suite.road.reference import TubeParams, box_qp, resample, smooth_in_tube
+from suite.road.route_reference import build_reference
+
+REAL = Path(__file__).resolve().parents[2] / "shared" / "nets_real"
+REAL_CATALOG = REAL / "catalog.toml"
+
+
+def real_routes() -> dict[str, tuple[Path, tuple[str, ...]]]:
+    """net name -> (net file, the route of the example catalog)."""
+    doc = tomllib.loads(REAL_CATALOG.read_text())
+    out = {}
+    for sc in doc["scenario"]:
+        out[sc["net"].removesuffix(".net.xml")] = (REAL / sc["net"], tuple(sc["route"]))
+    return out
+
+
+def curvature(points: np.ndarray) -> np.ndarray:
+    d1 = np.gradient(points, axis=0)
+    d2 = np.gradient(d1, axis=0)
+    return (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.hypot(*d1.T) ** 3
+
+
+# ----------------------------------------------------------------------------- the solver
+def test_box_qp_matches_a_dense_bounded_least_squares() -> None:
+    rng = np.random.default_rng(3)
+    n = 60
+    d2 = sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(n - 2, n))
+    a = sp.vstack([d2, 0.1 * sp.eye(n)]).tocsr()
+    b = np.concatenate([rng.normal(0.0, 1.0, n - 2), rng.normal(0.0, 1.0, n)])
+    lo, hi = np.full(n, -0.5), np.full(n, 0.4)
+    x = box_qp(a.T @ a, -(a.T @ b), lo, hi, bandwidth=2, tol=1e-9)
+    exact = lsq_linear(a.toarray(), b, bounds=(lo, hi), method="bvls").x
+    assert np.all((x >= lo) & (x <= hi))
+    assert np.max(np.abs(x - exact)) < 1e-5
+    assert np.any(np.isclose(x, hi)) and np.any(np.isclose(x, lo))  # bounds really bind
+
+
+def kinked(alpha_deg: float, leg_m: float = 300.0) -> np.ndarray:
+    a = math.radians(alpha_deg)
+    return np.array([[0.0, 0.0], [leg_m, 0.0], [leg_m + leg_m * math.cos(a),
+                                                  leg_m * math.sin(a)]])
+
+
+@pytest.mark.parametrize("alpha_deg", [2.0, 5.0])
+def test_a_kink_is_rounded_within_the_tube_at_the_radius_the_tube_forces(alpha_deg: float
+                                                                          ) -> None:
+    tube = TubeParams()
+    res = resample(kinked(alpha_deg), tube.spacing_m)
+    curve, dev = smooth_in_tube(res, tube)
+    assert np.max(np.abs(dev)) <= tube.lane_tube_m + 1e-6
+    r_min = 1.0 / np.max(np.abs(curvature(curve)[3:-3]))
+    # No curve within d of a kink of angle a turns more gently than R = 8 d / a².
+    r_tube = 8.0 * tube.lane_tube_m / math.radians(alpha_deg) ** 2
+    assert 0.8 * r_tube <= r_min <= 3.0 * r_tube
+    # Away from the kink the curve lies on the polyline.
+    far = (res.s_m < 100.0) | (res.s_m > res.s_m[-1] - 100.0)
+    assert np.max(np.abs(dev[far])) < 2e-3
+
+
+def test_a_straight_polyline_stays_straight() -> None:
+    res = resample(np.array([[0.0, 0.0], [500.0, 0.0]]), 1.0)
+    curve, dev = smooth_in_tube(res, TubeParams())
+    assert np.max(np.abs(dev)) < 1e-9 and np.max(np.abs(curve[:, 1])) < 1e-9
+
+
+# ----------------------------------------------------------------------------- lane identity
+@pytest.mark.skipif(not REAL_CATALOG.is_file(), reason="../shared/nets_real not present")
+def test_a391_lane_shift_is_followed_by_connection_not_index() -> None:
+    net_path, route = real_routes()["a391_braunschweig"]
+    g = RouteLaneGraph(RoadNetwork.load(net_path), route)
+    k = route.index("332893808")
+    link = g.continuation(k, 0)
+    assert link is not None and route[k + 1] == "288155217" and link.to_index == 1
+    assert g.is_through(k, 0) and not g.is_through(k + 1, 0)  # lane 0 there ends
+
+
+@pytest.mark.skipif(not REAL_CATALOG.is_file(), reason="../shared/nets_real not present")
+def test_the_rightmost_through_lane_does_not_follow_an_exit() -> None:
+    net_path, route = real_routes()["a2_helmstedt"]
+    g = RouteLaneGraph(RoadNetwork.load(net_path), route)
+    k_exit = route.index("270216728")  # 4 lanes, lane 0 is the exit lane
+    assert not g.is_through(k_exit, 0)
+    chain = g.reference_chain(route.index("270221634"), 0)
+    on_exit_edge = [st.lane.index for st in chain if st.k == k_exit]
+    assert on_exit_edge == [1]
+    assert chain[-1].k == len(route) - 1  # to the route's end
+
+
+@pytest.mark.skipif(not REAL_CATALOG.is_file(), reason="../shared/nets_real not present")
+def test_an_ego_in_a_lane_that_ends_gets_the_lane_it_merges_into() -> None:
+    net_path, route = real_routes()["a36_schladen"]
+    g = RouteLaneGraph(RoadNetwork.load(net_path), route)
+    k = route.index("299913553")  # entry edge: lane 0 is the acceleration lane
+    assert not g.is_through(k, 0)
+    assert g.reference_lane(k, 0) == 1
+
+
+# ----------------------------------------------------------------------------- references
+def _nets() -> list[tuple[str, Path, tuple[str, ...]]]:
+    out = []
+    for name in sumo_nets.available():
+        path = sumo_nets.net_path(name)
+        out.append((name, path, RoadNetwork.load(path).default_route()))
+    if REAL_CATALOG.is_file():
+        out += [(name, p, r) for name, (p, r) in real_routes().items()]
+    return out
+
+
+@pytest.mark.parametrize(("name", "net_path", "route"), _nets(), ids=[n for n, _, _ in _nets()])
+def test_every_through_lane_reference_hugs_its_lane_smoothly(name: str, net_path: Path,
+                                                             route: tuple[str, ...]) -> None:
+    net = RoadNetwork.load(net_path)
+    g = RouteLaneGraph(net, route)
+    tube = TubeParams()
+    for i in sorted(g.lanes(0)):
+        if not (g.is_through(0, i) and g.lanes(0)[i].allows_passenger):
+            continue
+        ref = build_reference(net, route, 1.0, i)
+        # Within 0.10 m of the lane polyline outside junctions and jog zones ...
+        assert ref.max_offset_m <= tube.lane_tube_m + 1e-6, (name, i)
+        # ... no lateral jump (points stay ~1 m apart) ...
+        step = np.hypot(*np.diff(ref.points_xy_m, axis=0).T)
+        assert np.max(step) < 1.5 * tube.spacing_m and np.min(step) > 0.5 * tube.spacing_m
+        # ... and no sharper than the lane itself: at each vertex outside junctions the
+        # lane turns like the circle through it and its neighbours (R_menger), or, at an
+        # isolated kink of angle a, like no curve within d can avoid (R = 8 d / a²).
+        poly = ref.polyline_xy_m
+        a, b, c = poly[:-2], poly[1:-1], poly[2:]
+        cross = np.abs((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
+        sides = (np.hypot(*(b - a).T) * np.hypot(*(c - b).T) * np.hypot(*(c - a).T))
+        r_menger = sides / np.maximum(2.0 * cross, 1e-12)
+        seg = np.diff(poly, axis=0)
+        heading = np.arctan2(seg[:, 1], seg[:, 0])
+        turn = np.abs(np.angle(np.exp(1j * np.diff(heading))))
+        r_tube = 8.0 * tube.lane_tube_m / np.maximum(turn, 1e-9) ** 2
+        inner = ~ref.polyline_junction[1:-1]
+        road_r = float(np.min(np.minimum(r_menger, r_tube)[inner])) if np.any(inner) else np.inf
+        r_min = 1.0 / max(float(np.max(np.abs(curvature(ref.points_xy_m)[3:-3]))), 1e-9)
+        assert r_min >= 0.7 * min(road_r, 1e6), (name, i, r_min, road_r)
+        ref_len = float(np.sum(step))
+        assert abs(ref.path_s(net.route_length_m(route)) - ref_len) < 0.02 * ref_len + 20.0
