@@ -22,6 +22,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 
 from controllers.behaviour.types import ObstaclePolicy, Obstacles
+from controllers.path.frenet import FrenetPath
 from controllers.plant.vehicle_model import VehicleParams
 
 __all__ = ["Command", "ConfigError", "Controller", "Observation", "ObstaclePolicy",
@@ -49,6 +50,9 @@ class ScenarioContext:
     control_period_s: time between two ``step`` calls [s].
     vehicle: the ego's single-track parameters (the plant is exactly this model).
     initial_state: (6,) plant state at t = 0, see ``vehicle_model.STATE_NAMES``.
+    reference_smoothing_m: the heading smoothing [m] to build the Frenet path with
+        (:meth:`reference_path`): 4 m for a raw lane polyline; the runs hand over an
+        already smooth reference (``suite.road.reference``) and use a small value.
     """
 
     reference_xy_m: np.ndarray
@@ -57,6 +61,12 @@ class ScenarioContext:
     control_period_s: float
     vehicle: VehicleParams
     initial_state: np.ndarray
+    reference_smoothing_m: float = 4.0
+
+    def reference_path(self) -> FrenetPath:
+        """The Frenet path of the reference (cached: the loop and the controller share it)."""
+        return FrenetPath.cached(np.asarray(self.reference_xy_m, dtype=np.float64),
+                                 smoothing_m=self.reference_smoothing_m)
 
     def __post_init__(self) -> None:
         ref = np.asarray(self.reference_xy_m, dtype=np.float64)

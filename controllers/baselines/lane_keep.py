@@ -20,8 +20,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-import numpy as np
-
 from controllers.behaviour.types import ObstaclePolicy
 from controllers.params import build, check_leaves, check_range, param, to_dict
 from controllers.path.frenet import FrenetPath
@@ -72,7 +70,7 @@ class LaneKeepController:
 
     def reset(self, context: ScenarioContext) -> None:
         self._ctx = context
-        self._path = FrenetPath.cached(np.asarray(context.reference_xy_m, dtype=np.float64))
+        self._path = context.reference_path()
         x, y = float(context.initial_state[0]), float(context.initial_state[1])
         s, _ = self._path.project(x, y)
         self._s_hint = float(s)

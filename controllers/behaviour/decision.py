@@ -46,6 +46,7 @@ from controllers.behaviour.types import (
 from controllers.path.frenet import FrenetPath
 
 IntArray = npt.NDArray[np.int64]
+_LANE_END_MARGIN_M = 20.0  # a pass lane must continue this far beyond the manoeuvre
 
 
 @dataclass(frozen=True)
@@ -101,8 +102,7 @@ class LaneBehaviour:
         if traffic.count == 0 or self.policy.max_obstacles == 0:
             return Decision(side=SIDE_NONE, reason="no obstacle", target_speed_mps=set_speed_mps)
         fn = project_traffic(self.path, traffic, ego)
-        scene = _Scene(ego, traffic, fn, lanes, fn.s_m - ego.s_m,
-                       np.rint(fn.y_m / self.lane_width_m).astype(np.int64))
+        scene = _Scene(ego, traffic, fn, lanes, fn.s_m - ego.s_m, self._lanes_of(fn.y_m, lanes))
         blocker = self._blocker(scene)
         side, reason, target = SIDE_NONE, "no obstacle in lane", set_speed_mps
         if blocker >= 0:
@@ -121,12 +121,39 @@ class LaneBehaviour:
                         obstacle_ids=tuple(traffic.ids[i] for i in order))
 
     # ------------------------------------------------------------------ steps
+    def _lanes_of(self, y_m: np.ndarray, lanes: LaneContext) -> IntArray:
+        """Lane of each lateral offset relative to the reference lane (0; left +1, right
+        -1, ...): the nearest lane centre of the lane context where all offsets are
+        known, else multiples of the lane width."""
+        order = sorted(lanes.slots)
+        offsets = np.array([lanes.slots[i].offset_m for i in order], dtype=np.float64)
+        if not order or not np.all(np.isfinite(offsets)) or lanes.reference_index not in order:
+            return np.rint(y_m / self.lane_width_m).astype(np.int64)
+        nearest = np.argmin(np.abs(np.asarray(y_m)[:, None] - offsets[None, :]), axis=1)
+        # Beyond the outermost lanes keep counting in lane widths (a car on a shoulder
+        # the context does not list, or a lane the context has not reached yet).
+        rel = nearest - order.index(lanes.reference_index)
+        left = np.asarray(y_m) > offsets[-1] + 0.5 * self.lane_width_m
+        right = np.asarray(y_m) < offsets[0] - 0.5 * self.lane_width_m
+        rel = np.where(left, len(order) - 1 - order.index(lanes.reference_index)
+                       + np.rint((np.asarray(y_m) - offsets[-1]) / self.lane_width_m), rel)
+        rel = np.where(right, -order.index(lanes.reference_index)
+                       + np.rint((np.asarray(y_m) - offsets[0]) / self.lane_width_m), rel)
+        return rel.astype(np.int64)
+
+    def _reference_offset_m(self, lanes: LaneContext) -> float:
+        """The reference lane's centre from the path [m] (0 unless the path crosses
+        between lane centres, as it does where netconvert shifts lanes)."""
+        ref = lanes.slot(lanes.reference_index)
+        return ref.offset_m if ref is not None and math.isfinite(ref.offset_m) else 0.0
+
     def _blocker(self, sc: _Scene) -> int:
         """Index of the nearest blocking vehicle ahead (-1 if none)."""
         pol, g, v = self.policy, self.gap, sc.ego.speed_mps
         plan_range = max(pol.detection_distance_m, v * g.plan_horizon_s,
                          v**2 / (2.0 * g.follow_decel_mps2) + g.follow_standstill_m + 30.0)
-        overlap_lat = np.abs(sc.fn.y_m) < 0.5 * (self.lane_width_m + sc.fn.width_m) - 0.2
+        ref_y = self._reference_offset_m(sc.lanes)
+        overlap_lat = np.abs(sc.fn.y_m - ref_y) < 0.5 * (self.lane_width_m + sc.fn.width_m) - 0.2
         slower = (sc.fn.v_s_mps < v - 1.0) | sc.traffic.stalled
         blocking = overlap_lat & slower & (sc.ds > 0) & (sc.ds <= plan_range)
         if not pol.moving_obstacles:
@@ -173,9 +200,13 @@ class LaneBehaviour:
             return False, f"{name} is a shoulder (not allowed)"
         if not slot.allows_passenger and not slot.is_shoulder:
             return False, f"{name} lane bars passenger cars"
+        fn = sc.fn
+        needed = (float(fn.s_m[blocker]) + 0.5 * float(fn.length_m[blocker])
+                  + self.gap.pass_after_m - sc.ego.s_m + _LANE_END_MARGIN_M)
+        if slot.continues_m < needed:
+            return False, f"{name} lane ends in {slot.continues_m:.0f} m"
         in_lane = sc.lane_rel == side
         in_lane[blocker] = False
-        fn = sc.fn
         free = gap_is_free(sc.ego.s_m, sc.ego.speed_mps, self.ego.length_m,
                            float(fn.s_m[blocker]), float(fn.length_m[blocker]),
                            fn.s_m[in_lane], fn.v_s_mps[in_lane], fn.length_m[in_lane], self.gap)
@@ -200,8 +231,9 @@ class LaneBehaviour:
                                                             + self.ego.length_m))
                      if idx >= 0 else math.inf)
         if behind_by < self.gap.pass_after_m:
+            # The pass lane's centre where the ego is now (lanes shift at junctions).
             return (held.side, f"passing {held.vehicle_id}",
-                    held.lateral_reference_m, idx)
+                    self._lane_offset_m(held.side, sc.lanes), idx)
         self._passing = None
         return side, reason, 0.0, -1
 
@@ -244,9 +276,6 @@ class LaneBehaviour:
                          semi_b_m=semi_b)
 
     def _lane_offset_m(self, side: int, lanes: LaneContext) -> float:
-        """Signed distance from the reference lane's centre to the neighbour lane's [m]."""
-        ref = lanes.slot(lanes.reference_index)
-        target = lanes.slot(lanes.reference_index + side)
-        w_ref = ref.width_m if ref is not None else self.lane_width_m
-        w_target = target.width_m if target is not None else self.lane_width_m
-        return side * 0.5 * (w_ref + w_target)
+        """Offset [m] of the neighbour lane's centre on ``side`` from the reference path:
+        the lane context's own where known, else the half widths of the two lanes."""
+        return lanes.offset_of(lanes.reference_index + side, self.lane_width_m)

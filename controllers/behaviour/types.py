@@ -82,12 +82,17 @@ class Traffic:
 @dataclass(frozen=True)
 class LaneSlot:
     """A lane of the road under a point of the route: index (0 = rightmost of its road),
-    width [m], passenger cars allowed, hard shoulder."""
+    width [m], passenger cars allowed, hard shoulder; its centre's offset from the
+    reference path there [m, left +] (NaN: unknown, lanes are then assumed side by side
+    at their widths) and how far ahead along the route it continues [m] (inf: to the
+    route's end; an exit or a lane that ends has a finite value)."""
 
     index: int
     width_m: float
     allows_passenger: bool
     is_shoulder: bool
+    offset_m: float = math.nan
+    continues_m: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -105,6 +110,22 @@ class LaneContext:
     def reference_width_m(self) -> float:
         ref = self.slots.get(self.reference_index)
         return ref.width_m if ref is not None else math.nan
+
+    def offset_of(self, index: int, fallback_width_m: float) -> float:
+        """Offset [m] of lane ``index``'s centre from the reference path (left +): the
+        slot's own when known, else the half widths of the lanes in between."""
+        slot = self.slots.get(index)
+        if slot is not None and math.isfinite(slot.offset_m):
+            return slot.offset_m
+        ref = self.slots.get(self.reference_index)
+        ref_off = ref.offset_m if ref is not None and math.isfinite(ref.offset_m) else 0.0
+        step = 1 if index > self.reference_index else -1
+        total = 0.0
+        for i in range(self.reference_index, index, step):
+            a, b = self.slots.get(i), self.slots.get(i + step)
+            total += 0.5 * ((a.width_m if a else fallback_width_m)
+                            + (b.width_m if b else fallback_width_m))
+        return ref_off + step * total if index != self.reference_index else ref_off
 
 
 @dataclass(frozen=True)

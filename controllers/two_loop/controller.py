@@ -125,7 +125,7 @@ class TwoLoopController:
     # ----------------------------------------------------------------- protocol
     def reset(self, context: ScenarioContext) -> None:
         p = self.params
-        self.path = FrenetPath.cached(context.reference_xy_m)
+        self.path = context.reference_path()
         self.planner = self._planner_factory(self.path, p.policy.max_obstacles)
         self._vp = context.vehicle.as_array()
         self._dt = context.control_period_s

@@ -1,31 +1,103 @@
-"""Lane context along a route: the lanes of the road under a route position."""
+"""Lane context along a route: the lanes under a point of the reference path.
+
+For a position s on the reference path, :meth:`LaneContextMap.at` gives the lanes of the
+route edge there (route position from the reference's own mapping, so lane index shifts
+and lane-length differences along a long route do not accumulate), each with
+
+* its centre's offset from the reference path at s [m, left +]: the lane's polyline
+  projected onto the path, so a lane that netconvert shifts by half a lane at a
+  junction, or the reference crossing between lane centres in a jog zone, is where it
+  really is;
+* how far along the route it continues [m]: infinite for a through lane, up to its end
+  for a lane that ends or leaves the route (an acceleration lane, an exit);
+
+and the index of the lane the reference follows on that edge.
+"""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
+import numpy as np
+import numpy.typing as npt
+
 from controllers.behaviour.types import LaneContext, LaneSlot
-from suite.road.network import RoadNetwork
+from controllers.path.frenet import FrenetPath
+from suite.road.lane_graph import RouteLaneGraph
+from suite.road.network import LaneInfo, RoadNetwork
+from suite.road.route_reference import RouteReference
+
+FloatArray = npt.NDArray[np.float64]
+_SAMPLE_M = 5.0  # lane polylines are sampled this densely for their offset profile
+
+
+def _resample_shape(shape: FloatArray, step_m: float) -> FloatArray:
+    seg = np.hypot(*np.diff(shape, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    if cum[-1] <= 0.0:
+        return shape[:1]
+    s = np.linspace(0.0, cum[-1], max(int(math.ceil(cum[-1] / step_m)), 1) + 1)
+    return np.column_stack([np.interp(s, cum, shape[:, 0]), np.interp(s, cum, shape[:, 1])])
 
 
 class LaneContextMap:
-    """:meth:`at` gives the :class:`LaneContext` at a route position [m]: the lanes of the
-    edge there (a position inside a junction maps to the next edge) with the reference
-    lane's index."""
+    """See the module docstring. Offset profiles are computed per edge on first use."""
 
-    def __init__(self, network: RoadNetwork, route: Sequence[str], reference_index: int) -> None:
+    def __init__(self, network: RoadNetwork, route: Sequence[str], reference: RouteReference,
+                 path: FrenetPath) -> None:
         self._network = network
         self._route = tuple(route)
+        self._reference = reference
+        self._path = path
+        self._graph = RouteLaneGraph(network, self._route)
         self._length_m = network.route_length_m(self._route)
-        self._by_edge: dict[str, LaneContext] = {}
-        slots: dict[str, dict[int, LaneSlot]] = {}
-        for li in network.lane_info(self._route):
-            slots.setdefault(li.edge_id, {})[li.index] = LaneSlot(
-                li.index, li.width_m, li.allows_passenger, li.is_shoulder)
-        for edge, by_index in slots.items():
-            self._by_edge[edge] = LaneContext(by_index, reference_index)
-        self._empty = LaneContext({}, reference_index)
+        self._starts = network.route_edge_starts_m(self._route)
+        self._profiles: dict[str, dict[int, tuple[FloatArray, FloatArray]]] = {}
+
+    def _profile(self, k: int) -> dict[int, tuple[FloatArray, FloatArray]]:
+        """Lane index -> (s on the path, offset) along that lane of route edge k."""
+        edge = self._route[k]
+        cached = self._profiles.get(edge)
+        if cached is not None:
+            return cached
+        out: dict[int, tuple[FloatArray, FloatArray]] = {}
+        for i, lane in self._graph.lanes(k).items():
+            pts = _resample_shape(np.asarray(lane.shape_xy_m, dtype=np.float64), _SAMPLE_M)
+            s, y = self._path.project(pts[:, 0], pts[:, 1])
+            order = np.argsort(s)
+            out[i] = (np.asarray(s, dtype=np.float64)[order],
+                      np.asarray(y, dtype=np.float64)[order])
+        self._profiles[edge] = out
+        return out
+
+    def _end_m(self, k: int, i: int) -> float:
+        """Route position where lane (k, i) ends (inf for a through lane)."""
+        if self._graph.is_through(k, i):
+            return math.inf
+        last = self._graph.reach(k, i)
+        edge = self._route[last]
+        return self._starts[edge] + self._network.edge_length_m(edge)
+
+    def _slot(self, k: int, lane: LaneInfo, s_m: float, route_pos_m: float) -> LaneSlot:
+        s_prof, y_prof = self._profile(k)[lane.index]
+        inside = s_prof.size and s_prof[0] - 1.0 <= s_m <= s_prof[-1] + 1.0
+        offset = float(np.interp(s_m, s_prof, y_prof)) if inside else math.nan
+        return LaneSlot(lane.index, lane.width_m, lane.allows_passenger, lane.is_shoulder,
+                        offset_m=offset,
+                        continues_m=max(self._end_m(k, lane.index) - route_pos_m, 0.0))
+
+    def route_pos(self, s_m: float) -> float:
+        """Route position [m] of arc length ``s_m`` on the reference."""
+        return self._reference.route_pos(s_m)
 
     def at(self, s_m: float) -> LaneContext:
-        edge, _ = self._network.locate(self._route, min(max(s_m, 0.0), self._length_m - 1e-3))
-        return self._by_edge.get(edge, self._empty)
+        pos = min(max(self._reference.route_pos(s_m), 0.0), self._length_m - 1e-3)
+        edge, _ = self._network.locate(self._route, pos)
+        k = self._route.index(edge)
+        slots = {i: self._slot(k, lane, s_m, pos) for i, lane in self._graph.lanes(k).items()}
+        ref = self._reference.lane_index_by_edge.get(edge)
+        if ref is None:  # outside the reference's window: the lane nearest the path
+            known = {i: abs(sl.offset_m) for i, sl in slots.items() if math.isfinite(sl.offset_m)}
+            ref = min(known, key=known.__getitem__) if known else min(slots)
+        return LaneContext(slots, ref)

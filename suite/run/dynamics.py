@@ -16,7 +16,7 @@ import numpy as np
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
 from controllers.protocol import Command
 from suite.run.ego import EgoProjector, EgoState, FloatArray
-from suite.world.protocol import EgoPose, Scene, World
+from suite.world.protocol import EgoPose, Scene, World, WorldEgo
 
 
 class EgoDynamics(Protocol):
@@ -61,10 +61,19 @@ class PlantDynamics:
 class SumoDrivenDynamics:
     """SUMO's driver model moves the ego; its state is read back each step.
 
-    SUMO gives the front bumper, heading and speed: the CG lies ``cg_to_front_bumper_m``
-    behind the bumper, the yaw rate is the heading change over the step, the
-    longitudinal acceleration the speed change and the lateral one speed times yaw rate
-    (no body slip: v = 0).
+    SUMO moves vehicles along lane polylines whose heading steps at every vertex, so its
+    heading is not the motion of a car: comfort measured on it would measure the
+    polyline (tens of m/s² at OSM kinks). The ego's yaw is therefore taken as the smooth
+    reference path's tangent at its position plus SUMO's yaw *relative to its lane*
+    (zero while it follows a lane, the lane-change angle otherwise):
+
+        psi = gamma(s) + wrap(psi_sumo - heading of the lane segment it is on)
+
+    The yaw rate is psi's change over the step, the lateral acceleration speed times
+    yaw rate, the longitudinal one SUMO's own acceleration; the CG lies
+    ``cg_to_front_bumper_m`` behind SUMO's front bumper. This is the motion the
+    plant-driven ego is measured on too: a car following the same smooth road. The first
+    step starts from SUMO's own pose (no derivative against the path's initial guess).
     """
 
     externally_driven = False
@@ -77,13 +86,27 @@ class SumoDrivenDynamics:
         self.step_s = step_s
         self._state0 = np.asarray(initial_state, dtype=np.float64).copy()
         self._psi = float(self._state0[2])
-        self._speed = math.hypot(float(self._state0[3]), float(self._state0[4]))
+
+    def _smooth_state(self, es: WorldEgo) -> tuple[FloatArray, float, float, float]:
+        """(state with the smooth yaw, s_m, lat_m, heading error) of SUMO's ego."""
+        d = self.vehicle.cg_to_front_bumper_m
+        cg = np.array([es.front_x_m - d * math.cos(es.heading_rad),
+                       es.front_y_m - d * math.sin(es.heading_rad)])
+        relative = (math.remainder(es.heading_rad - es.lane_heading_rad, 2 * math.pi)
+                    if math.isfinite(es.lane_heading_rad) else 0.0)
+        s, y, _ = self.projector.project(np.array([cg[0], cg[1], es.heading_rad]))
+        gamma = float(self.projector.path.gamma(s))
+        psi = self._psi + math.remainder(gamma + relative - self._psi, 2 * math.pi)
+        state = np.array([cg[0], cg[1], psi, es.speed_mps, 0.0, 0.0])
+        return state, s, y, relative
 
     def start(self) -> tuple[EgoState, Scene]:
         scene = self.world.start(None)
-        s, y, e = self.projector.project(self._state0)
-        return EgoState(self._state0.copy(), 0.0, 0.0, math.nan, math.nan, s, y, e,
-                        scene.ego), scene
+        if scene.ego is None:
+            raise RuntimeError("SUMO lost the ego at its insertion")
+        state, s, y, e = self._smooth_state(scene.ego)
+        self._psi = float(state[2])
+        return EgoState(state, 0.0, 0.0, math.nan, math.nan, s, y, e, scene.ego), scene
 
     def advance(self, command: Command) -> tuple[EgoState | None, Scene]:
         del command  # SUMO drives
@@ -91,15 +114,9 @@ class SumoDrivenDynamics:
         es = scene.ego
         if es is None:
             return None, scene
-        dt = self.step_s
-        d = self.vehicle.cg_to_front_bumper_m
-        dpsi = math.remainder(es.heading_rad - self._psi, 2 * math.pi)
-        psi = es.heading_rad
-        r = dpsi / dt
-        state = np.array([es.front_x_m - d * math.cos(psi), es.front_y_m - d * math.sin(psi),
-                          self._psi + dpsi, es.speed_mps, 0.0, r])
-        long_acc = (es.speed_mps - self._speed) / dt
-        self._psi, self._speed = float(state[2]), es.speed_mps
-        s, y, e = self.projector.project(state)
-        return EgoState(state, long_acc, es.speed_mps * r, math.nan, math.nan, s, y, e,
+        state, s, y, e = self._smooth_state(es)
+        r = (float(state[2]) - self._psi) / self.step_s
+        state[5] = r
+        self._psi = float(state[2])
+        return EgoState(state, es.accel_mps2, es.speed_mps * r, math.nan, math.nan, s, y, e,
                         es), scene

@@ -49,6 +49,7 @@ from reports.record import (
 from suite.catalog import Scenario
 from suite.road.lanes import LaneContextMap
 from suite.road.network import RoadNetwork
+from suite.road.route_reference import RouteReference, build_reference
 from suite.run.dynamics import EgoDynamics, PlantDynamics, SumoDrivenDynamics
 from suite.run.ego import EgoProjector
 from suite.run.info import scenario_info
@@ -111,15 +112,49 @@ def initial_state(path: FrenetPath, front_pos_m: float, speed_mps: float,
     return np.array([float(x), float(y), float(path.gamma(s_cg)), speed_mps, 0.0, 0.0])
 
 
+REFERENCE_SMOOTHING_M = 0.5  # the reference is already smooth (suite.road.reference)
+WINDOW_BEHIND_M = 150.0  # the reference covers this much route behind the ego's start ...
+WINDOW_AHEAD_M = 500.0  # ... and this much beyond what it can reach in the run
+
+
 def road_record(network: RoadNetwork, route: tuple[str, ...], reference: np.ndarray,
                 path: FrenetPath) -> RoadRecord:
-    lanes = tuple(LaneRecord(id=li.id, edge_id=li.edge_id, index=li.index, width_m=li.width_m,
-                             shape_xy_m=np.asarray(li.shape_xy_m, dtype=np.float64),
-                             allowed=li.allowed, is_shoulder=li.is_shoulder,
-                             allows_passenger=li.allows_passenger, speed_mps=li.speed_mps)
-                  for li in network.lane_info(route))
-    return RoadRecord(lanes=lanes, reference_xy_m=np.asarray(reference, dtype=np.float64),
+    """Every lane of every route edge, the internal junction lanes between consecutive
+    route edges (part of the road: the drivable area includes them), the reference."""
+    lanes = [LaneRecord(id=li.id, edge_id=li.edge_id, index=li.index, width_m=li.width_m,
+                        shape_xy_m=np.asarray(li.shape_xy_m, dtype=np.float64),
+                        allowed=li.allowed, is_shoulder=li.is_shoulder,
+                        allows_passenger=li.allows_passenger, speed_mps=li.speed_mps)
+             for li in network.lane_info(route)]
+    seen = {lane.id for lane in lanes}
+    by_id = {lane.id: lane for lane in lanes}
+    for k, edge in enumerate(route[:-1]):
+        for link in network.lane_links(edge):
+            if link.to_edge_id != route[k + 1]:
+                continue
+            source = by_id.get(f"{edge}_{link.from_index}")
+            for via_id, shape, width in zip(link.via_ids, link.via_shapes, link.via_widths_m,
+                                            strict=True):
+                if via_id in seen or source is None:
+                    continue
+                seen.add(via_id)
+                lanes.append(LaneRecord(
+                    id=via_id, edge_id=via_id.rsplit("_", 1)[0], index=link.from_index,
+                    width_m=width, shape_xy_m=np.asarray(shape, dtype=np.float64),
+                    allowed=source.allowed, is_shoulder=source.is_shoulder,
+                    allows_passenger=source.allows_passenger, speed_mps=source.speed_mps,
+                    internal=True))
+    return RoadRecord(lanes=tuple(lanes), reference_xy_m=np.asarray(reference, dtype=np.float64),
                       reference_length_m=float(path.length_m), route=route)
+
+
+def _reference(network: RoadNetwork, scenario: Scenario) -> RouteReference:
+    """The run's reference: the through lane the ego starts in, over the stretch it can use."""
+    ego = scenario.ego
+    reach = max(ego.speed_mps, ego.target_speed_mps, 1.0) * scenario.duration_s
+    window = (ego.pos_m - WINDOW_BEHIND_M, ego.pos_m + reach + WINDOW_AHEAD_M)
+    return build_reference(network, tuple(scenario.route), ego.pos_m, ego.lane,
+                           window_m=window)
 
 
 def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: RunOptions,
@@ -130,14 +165,18 @@ def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: R
     controller: Controller = SumoDrivesEgo(driver) if isinstance(driver, SumoDriverModel) \
         else driver
     info = scenario_info(scenario, options.catalog_name, vehicle, controller.parameters())
-    reference = network.lane_centreline(route, scenario.ego.lane)
-    path = FrenetPath.cached(reference)
+    ref = _reference(network, scenario)
+    reference = ref.points_xy_m
     start_edge, _ = network.locate(route, scenario.ego.pos_m)
     lane_width = network.lane_width_m(start_edge, scenario.ego.lane)
     dt = float(scenario.step_s)
     target = float(scenario.ego.target_speed_mps)
-    state0 = initial_state(path, scenario.ego.pos_m, scenario.ego.speed_mps, vehicle)
-    controller.reset(ScenarioContext(reference, lane_width, target, dt, vehicle, state0))
+    context = ScenarioContext(reference, lane_width, target, dt, vehicle,
+                              np.zeros(6), reference_smoothing_m=REFERENCE_SMOOTHING_M)
+    path = context.reference_path()
+    state0 = initial_state(path, ref.path_s(scenario.ego.pos_m), scenario.ego.speed_mps,
+                           vehicle)
+    controller.reset(replace(context, initial_state=state0))
     plant_driven = not isinstance(driver, SumoDriverModel)
     world = SumoWorld(scenario, network, vehicle, run_dir / "sumo", externally_driven=plant_driven)
     projector = EgoProjector(path)
@@ -152,7 +191,7 @@ def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: R
     recorder = TraceRecorder(n_steps, controller.diagnostics_type, path,
                              float(scenario.record_radius_m))
     stages = Stages(dynamics=dynamics, behaviour=behaviour,
-                    lanes=LaneContextMap(network, route, scenario.ego.lane),
+                    lanes=LaneContextMap(network, route, ref, path),
                     controller=controller, monitor=SafetyMonitor(vehicle), recorder=recorder,
                     stop=StandardStop(path.length_m, options.timeout_s, wall0),
                     set_speed_mps=target, step_s=dt)

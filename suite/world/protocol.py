@@ -32,7 +32,9 @@ class EgoPose:
 @dataclass(frozen=True)
 class WorldEgo:
     """The ego as the world has it after a step (front bumper, heading, speed [m/s],
-    acceleration [m/s²], lane index on its road, road id)."""
+    acceleration [m/s²], lane index on its road, road id) and the heading of the lane
+    polyline segment it is on [rad] (NaN if unknown): heading minus lane heading is the
+    ego's yaw relative to its lane, free of the polyline's kinks."""
 
     front_x_m: float
     front_y_m: float
@@ -41,6 +43,7 @@ class WorldEgo:
     accel_mps2: float
     lane_index: int
     road_id: str
+    lane_heading_rad: float = float("nan")
 
 
 @dataclass(frozen=True)

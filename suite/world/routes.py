@@ -4,7 +4,9 @@ Stalled vehicles stop on their lane for the whole run. Background traffic: vehic
 spread over the route at t = 0 with exponential headways (mean speed/flow, so traffic
 surrounds the ego from the first step) plus Poisson flows entering at the route's start,
 on every lane of the first route edge that admits passenger cars (or the lanes the
-catalog names). All randomness comes from one generator seeded by the scenario.
+catalog names); a pre-placed car follows its lane across the route's index shifts and
+is only placed where that lane continues far enough for it. All randomness comes from
+one generator seeded by the scenario.
 """
 
 from __future__ import annotations
@@ -18,11 +20,16 @@ import numpy as np
 
 from controllers.plant.vehicle_model import VehicleParams
 from suite.catalog import Scenario
+from suite.road.lane_graph import RouteLaneGraph
 from suite.road.network import RoadNetwork
 
 EGO_ID = "ego"
 STALLED_PREFIX = "stalled"
 INSERT_CLEARANCE_M = 30.0  # no pre-placed traffic this close to the ego or a stalled car
+# A pre-placed car needs this much of its lane ahead: 2 s at its speed plus a stop at
+# 4 m/s² (SUMO refuses a departure that cannot stop before the lane ends).
+PRE_PLACE_HEADWAY_S = 2.0
+PRE_PLACE_DECEL_MPS2 = 4.0
 
 
 def _fmt(value: float) -> str:
@@ -37,6 +44,7 @@ class RouteFile:
     network: RoadNetwork
     vehicle: VehicleParams
     ssm_file: Path
+    externally_driven: bool = True
     stalled_ids: list[str] = field(default_factory=list)
 
     @property
@@ -61,9 +69,12 @@ class RouteFile:
         veh = self.vehicle
         dev = self.scenario.traffic.speed_factor_dev if self.scenario.traffic is not None else 0.1
         ssm_path = su.escape(str(self.ssm_file))
+        # SUMO's driver departs at the fastest safe speed up to its type's maximum: the
+        # catalog's start speed (its set speed is applied after insertion).
+        max_speed = 60.0 if self.externally_driven else max(self.scenario.ego.speed_mps, 0.1)
         return [
             f'  <vType id="ego" length="{_fmt(veh.length_m)}" width="{_fmt(veh.width_m)}" '
-            f'vClass="passenger" minGap="2.0" maxSpeed="60" color="0,160,255">',
+            f'vClass="passenger" minGap="2.0" maxSpeed="{_fmt(max_speed)}" color="0,160,255">',
             '    <param key="has.ssm.device" value="true"/>',
             '    <param key="device.ssm.measures" value="TTC DRAC PET"/>',
             '    <param key="device.ssm.trajectories" value="true"/>',
@@ -92,6 +103,12 @@ class RouteFile:
         ]
 
     def _ego(self) -> str:
+        """The ego's vehicle. Driven from outside, it is inserted at rest: SUMO refuses an
+        insertion at a speed it could not stop from before the car ahead (a stalled car 50
+        m ahead of a 25 m/s ego), and the ego's speed in SUMO is the plant's from its
+        first pushed pose on. Driven by SUMO, it departs at the catalog's speed or, where
+        that is not safe, at the fastest speed SUMO deems safe (``departSpeed="max"``
+        under a type whose maximum is the catalog's speed)."""
         ego = self.scenario.ego
         edge, pos = self.network.locate(self.route, ego.pos_m)
         k = self.route.index(edge)
@@ -100,9 +117,10 @@ class RouteFile:
         if k > 0:
             extra = f'  <route id="r_ego" edges="{" ".join(self.route[k:])}"/>\n'
             route_ref = "r_ego"
+        speed = "0" if self.externally_driven else "max"
         return (f'{extra}  <vehicle id="{EGO_ID}" type="ego" route="{route_ref}" depart="0" '
                 f'departLane="{ego.lane}" departPos="{_fmt(max(pos, self.vehicle.length_m))}" '
-                f'departSpeed="{_fmt(ego.speed_mps)}"/>')
+                f'departSpeed="{speed}"/>')
 
     def traffic_lanes(self) -> list[int]:
         """Lanes of the first route edge that get traffic."""
@@ -137,28 +155,39 @@ class RouteFile:
 
     def _pre_placed(self, rng: np.random.Generator, lanes: list[int], per_lane_vph: float,
                     speed: float) -> list[str]:
-        """Vehicles at t = 0 with exponential headways (density k = q / v)."""
+        """Vehicles at t = 0 with exponential headways (density k = q / v), along each
+        traffic lane followed across the route by its connections (its index shifts where
+        lanes are added or dropped), and only where that lane continues far enough for a
+        driver at ``speed`` to move over before it ends (SUMO refuses such departures)."""
         sc, net = self.scenario, self.network
         mean_gap_m = speed / (per_lane_vph / 3600.0) if per_lane_vph > 0 else math.inf
         if not math.isfinite(mean_gap_m):
             return []
+        graph = RouteLaneGraph(net, self.route)
+        starts = net.route_edge_starts_m(self.route)
         route_len = net.route_length_m(self.route)
         blocked = [sc.ego.pos_m] + [st.pos_m for st in sc.stalled]
+        needed = speed * PRE_PLACE_HEADWAY_S + speed**2 / (2.0 * PRE_PLACE_DECEL_MPS2)
         lines: list[str] = []
         n = 0
         for lane in lanes:
+            index_on = {st.k: st.lane.index for st in graph.chain(0, lane)}
             pos = float(rng.exponential(mean_gap_m)) + 10.0
             while pos < route_len - 20.0:
-                near = any(abs(pos - b) < INSERT_CLEARANCE_M for b in blocked)
                 edge, pos_on_edge = net.locate(self.route, pos)
-                if not near and net.lane_count(edge) > lane:
-                    k = self.route.index(edge)
-                    vid = f"pre{n}"
-                    lines.append(f'  <route id="r_{vid}" edges="{" ".join(self.route[k:])}"/>')
-                    lines.append(
-                        f'  <vehicle id="{vid}" type="bg" route="r_{vid}" depart="0" '
-                        f'departLane="{lane}" departPos="{_fmt(max(pos_on_edge, 5.0))}" '
-                        f'departSpeed="{_fmt(speed)}"/>')
-                    n += 1
+                k = self.route.index(edge)
+                i = index_on.get(k)
+                near = any(abs(pos - b) < INSERT_CLEARANCE_M for b in blocked)
+                if not near and i is not None:
+                    last = self.route[graph.reach(k, i)]
+                    left_m = starts[last] + net.edge_length_m(last) - pos
+                    if graph.is_through(k, i) or left_m >= needed:
+                        vid = f"pre{n}"
+                        lines.append(f'  <route id="r_{vid}" edges="{" ".join(self.route[k:])}"/>')
+                        lines.append(
+                            f'  <vehicle id="{vid}" type="bg" route="r_{vid}" depart="0" '
+                            f'departLane="{i}" departPos="{_fmt(max(pos_on_edge, 5.0))}" '
+                            f'departSpeed="{_fmt(speed)}"/>')
+                        n += 1
                 pos += max(float(rng.exponential(mean_gap_m)), 12.0)
         return lines

@@ -67,13 +67,15 @@ class SumoWorld:
         self.vehicle = vehicle
         self.work_dir = Path(work_dir)
         self.externally_driven = externally_driven
-        self._routes = RouteFile(scenario, network, vehicle, self.ssm_file)
+        self._routes = RouteFile(scenario, network, vehicle, self.ssm_file, externally_driven)
         self._radius_m = max(float(scenario.record_radius_m), SENSING_RADIUS_M)
         self._ls: Any = None
         self._tc: Any = None
         self._t_origin = 0.0
         self._collisions: list[SumoCollision] = []
         self._stalled: tuple[StalledVehicle, ...] = ()
+        # lane id -> (cumulative shape length scaled to the lane's length, segment headings)
+        self._lane_geometry: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
     @property
     def ssm_file(self) -> Path:
@@ -184,7 +186,29 @@ class SumoWorld:
                         heading_rad=float(nav_deg_to_math_rad(v.getAngle(EGO_ID))),
                         speed_mps=float(v.getSpeed(EGO_ID)),
                         accel_mps2=float(v.getAcceleration(EGO_ID)),
-                        lane_index=int(v.getLaneIndex(EGO_ID)), road_id=str(v.getRoadID(EGO_ID)))
+                        lane_index=int(v.getLaneIndex(EGO_ID)), road_id=str(v.getRoadID(EGO_ID)),
+                        lane_heading_rad=self._lane_heading(str(v.getLaneID(EGO_ID)),
+                                                            float(v.getLanePosition(EGO_ID))))
+
+    def _lane_heading(self, lane_id: str, pos_m: float) -> float:
+        """Heading [rad] of the segment of lane ``lane_id``'s polyline at position ``pos_m``
+        (SUMO's lane positions run along the lane's length, its shape scaled to it)."""
+        if not lane_id:
+            return math.nan
+        geom = self._lane_geometry.get(lane_id)
+        if geom is None:
+            shape = np.asarray(self._ls.lane.getShape(lane_id), dtype=np.float64).reshape(-1, 2)
+            if len(shape) < 2:
+                return math.nan
+            seg = np.diff(shape, axis=0)
+            cum = np.concatenate([[0.0], np.cumsum(np.hypot(*seg.T))])
+            length = float(self._ls.lane.getLength(lane_id))
+            scale = length / cum[-1] if cum[-1] > 0 else 1.0
+            geom = (cum * scale, np.arctan2(seg[:, 1], seg[:, 0]))
+            self._lane_geometry[lane_id] = geom
+        cum, heading = geom
+        k = int(np.clip(np.searchsorted(cum, pos_m, side="right") - 1, 0, len(heading) - 1))
+        return float(heading[k])
 
     def _traffic(self) -> Traffic:
         """Vehicles within the sensing radius of the ego (the ego excluded)."""

@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
+from controllers.path.frenet import FrenetPath
 from controllers.plant.vehicle_model import VehicleParams
 from suite.catalog import load_catalog
 from suite.road.lanes import LaneContextMap
 from suite.road.network import RoadNetwork
+from suite.road.route_reference import build_reference
 from suite.world.sumo import SumoWorld
 
 
@@ -47,7 +49,9 @@ def main() -> None:
                 passed.add(vid)
     ego_edge = libsumo.vehicle.getRoadID("ego")
     ego_pos = net.route_edge_starts_m(sc.route)[ego_edge] + libsumo.vehicle.getLanePosition("ego")
-    lanes = LaneContextMap(net, sc.route, sc.ego.lane).at(ego_pos)
+    ref = build_reference(net, tuple(sc.route), sc.ego.pos_m, sc.ego.lane)
+    path = FrenetPath.cached(ref.points_xy_m, smoothing_m=0.5)
+    lanes = LaneContextMap(net, sc.route, ref, path).at(ref.path_s(ego_pos))
     xy = np.array(stall_xy)
     world.close()
     print(json.dumps({
