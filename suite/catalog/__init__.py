@@ -1,23 +1,127 @@
-"""TOML scenario catalogs (see :mod:`suite.catalog.loader` for the format)."""
+"""TOML scenario catalogs: parse, validate against the road network, expand sweeps.
 
-from suite.catalog.loader import (
+This file format is a public contract. A catalog looks like::
+
+    [defaults]                      # optional, merged into every scenario
+    controller = "lane_keep"        # a registered controller name, or {name = ..., options...}
+    duration_s = 30.0
+    step_s = 0.02
+    seed = 0
+
+    [[scenario]]
+    name = "s3_stall_mid"           # unique; [a-z0-9_]+
+    net = "straight_3lane"          # a bundled net, or a .net.xml path relative to this file
+    route = ["e0"]                  # optional; default: the longest edge path through the net
+    ego = { lane = 1, pos_m = 50.0, speed_mps = 25.0, target_speed_mps = 25.0 }
+    stalled = [ { lane = 1, pos_m = 400.0 } ]        # zero or more; pos_m along the route
+    traffic = { vehicles_per_hour = 1500, seed = 7 } # optional background traffic
+    controller = { name = "lane_keep" }              # a table may carry options
+    [scenario.sweep]                # optional: cartesian product, one scenario per combination
+    "stalled.0.pos_m" = [300.0, 500.0]
+    "traffic.vehicles_per_hour" = [0, 2000]
+
+Keys of a scenario (all may also appear in ``[defaults]`` except ``name`` and ``sweep``):
+
+=================== =========================================================================
+``name``            required, ``[a-z0-9_]+``, unique (also after sweep expansion).
+``net``             required; a bundled net name (``sumo_nets.available()``), else a path to a
+                    ``.net.xml`` file, relative to the catalog file (or absolute).
+``route``           list of edge ids, each consecutive pair connected. Default: the
+                    network's longest edge path (:meth:`RoadNetwork.default_route`).
+``ego``             required table: ``lane`` (int), ``pos_m``, ``speed_mps`` (required),
+                    ``target_speed_mps`` (default: ``speed_mps``).
+``stalled``         list of tables: ``lane``, ``pos_m`` (required), ``length_m`` (4.8),
+                    ``width_m`` (1.9). Default: none.
+``traffic``         table: ``vehicles_per_hour`` (required, >= 0), ``seed`` (default: the
+                    scenario's ``seed``), ``speed_mps`` (default: lane speed limit),
+                    ``lanes`` (default: every lane of the first route edge that admits
+                    passenger cars), ``speed_factor_dev`` (0.1). Default: no traffic.
+``controller``      required (usually from ``[defaults]``): a name, or a table with ``name``
+                    and the controller's options.
+``duration_s``      required, > 0.         ``step_s``: required, > 0 and <= ``duration_s``.
+``seed``            int in [0, 2**31 - 1]; default 0.
+``allow_shoulder``  bool, default false: the ego may use a hard shoulder.
+``criteria``        table name -> number: pass/fail limits overriding the defaults of the
+                    metrics (names are not checked here).
+``record_radius_m`` > 0, default 150: vehicles within this distance of the ego are logged.
+``timeout_s``       > 0: wall-clock limit of one run. Default: none.
+``sweep``           table dotted-path -> non-empty list (see below).
+=================== =========================================================================
+
+Every other key, anywhere, is an error. Numbers: ints or floats, never bools, finite.
+Lane indices count from 0 = rightmost, as in SUMO.
+
+Merging: ``[defaults]`` is merged into every scenario key by key; the scenario's value
+replaces the default's wholesale, except ``criteria`` which is merged name by name
+(defaults first, then the scenario).
+
+Sweeps: each key of ``[scenario.sweep]`` is a dotted path into the merged scenario (list
+indices numeric, e.g. ``"stalled.0.pos_m"``; unquoted dotted TOML keys work too); its
+target must exist after merging, or be an optional key of an existing table (e.g.
+``ego.target_speed_mps``). The scenario expands to the cartesian product of the value
+lists, the first key varying slowest. Variant names are
+``<name>__<short><value>[__<short><value>...]``: ``short`` is the last path component,
+abbreviated (``pos_m``->``pos``, ``vehicles_per_hour``->``vph``, ``speed_mps``->``speed``,
+``target_speed_mps``->``vt``, otherwise the component without its unit suffix); when two
+keys of a sweep share a short, preceding components are prepended until they differ
+(``ego.pos_m``->``egopos``, ``stalled.0.pos_m``->``stalled0pos``). Values: numbers compactly
+(``300.0``->``300``, ``2.5``->``2p5``, ``-1``->``m1``), bools ``true``/``false``, strings as
+is (characters outside ``[a-z0-9_]`` become ``_``), lists/tables by their position in the
+sweep list (``v0``, ``v1``...). ``Scenario.family`` is the unexpanded name and
+``Scenario.sweep_values`` maps each swept path to its value.
+
+Validation against the network: route edges exist and connect; ``ego`` and ``stalled``
+positions lie in ``[0, route length)``; their lanes exist at that position
+(:meth:`RoadNetwork.lanes_at`); the ego's start lane admits passenger cars, or is a hard
+shoulder and ``allow_shoulder`` is true; traffic lanes exist on the first route edge and
+admit passenger cars.
+
+Controllers: the name must be one of ``controllers.registry.names()``; the options are
+checked by building the controller once per distinct (name, options) with
+``controllers.registry.make`` (a ``ConfigError`` becomes an error at
+``scenario[i].controller.<key>``). If ``known_controllers`` is given to
+:func:`load_catalog`, names are checked against it instead and, **only in that case**, the
+option check is skipped for a name the registry cannot build because the registry (or
+``controllers.builtin``) cannot be imported or does not know that name.
+
+All problems of a catalog are collected and raised together as one :class:`CatalogError`
+(``.issues`` holds them as :class:`CatalogIssue`), one line each::
+
+    <file>: scenario[2].stalled.0.lane (scenario 's3_stall_mid'): expected ..., got 5 [note]
+
+naming the file, the key, the scenario (its name, or ``scenario[i]`` without a valid name)
+and what was expected. Notes: ``value from [defaults]`` when the bad value was inherited;
+``value from scenario[i].sweep."<key>"`` (the scenario is then the variant) when a swept
+value is bad; ``all sweep variants`` for a problem shared by every variant (reported once,
+under the family name). A scenario whose network or route is unusable is not checked
+further against the network (no cascade of follow-up errors).
+
+The package, one job per module: :mod:`~suite.catalog.errors` (problems and the error),
+:mod:`~suite.catalog.frozen` (immutable values), :mod:`~suite.catalog.rules` (field
+rules), :mod:`~suite.catalog.specs` (the resolved scenario), :mod:`~suite.catalog.keys`
+(the allowed keys), :mod:`~suite.catalog.sweep` (sweep paths and names),
+:mod:`~suite.catalog.nets` (bundled nets), :mod:`~suite.catalog.loader` (reading, merging,
+expanding), :mod:`~suite.catalog.build` (checking and building one scenario),
+:mod:`~suite.catalog.report` (where a problem is reported),
+:mod:`~suite.catalog.controller_check` (controllers),
+:mod:`~suite.catalog.network_checks` (the scenario against its network) and
+:mod:`~suite.catalog.filtering` (selecting scenarios by name).
+"""
+
+from suite.catalog.errors import CatalogError, CatalogIssue, SpecError
+from suite.catalog.filtering import expand_filter
+from suite.catalog.frozen import FrozenMap
+from suite.catalog.loader import load_catalog
+from suite.catalog.nets import bundled_nets
+from suite.catalog.specs import (
     Catalog,
-    CatalogError,
-    CatalogIssue,
     ControllerSpec,
     EgoSpec,
-    FrozenMap,
     Scenario,
-    SpecError,
     StalledSpec,
     TrafficSpec,
-    bundled_nets,
-    expand_filter,
-    format_sweep_value,
-    load_catalog,
-    sweep_name,
-    sweep_shorts,
 )
+from suite.catalog.sweep import format_sweep_value, sweep_name, sweep_shorts
 
 __all__ = [
     "Catalog",

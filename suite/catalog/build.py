@@ -1,0 +1,150 @@
+"""One merged scenario dict (a sweep variant, or the scenario itself) checked field by
+field and, if it has no problem, built into a :class:`Scenario`.
+
+Every problem is reported through a :class:`~suite.catalog.report.Report`, in a fixed
+order: scalars, criteria, controller, net, route, ego, stalled, traffic, then the
+placements on the network (only if the net and route are usable).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, TypeVar
+
+from suite.catalog import rules
+from suite.catalog.controller_check import ControllerChecker
+from suite.catalog.errors import MISSING, SpecError
+from suite.catalog.network_checks import check_placements, resolve_net, resolve_route
+from suite.catalog.report import Report
+from suite.catalog.specs import EgoSpec, Scenario, StalledSpec, TrafficSpec
+
+__all__ = ["build_variant"]
+
+_Spec = TypeVar("_Spec", EgoSpec, StalledSpec, TrafficSpec)
+
+# Scalar keys of a scenario and their defaults (MISSING: required).
+_SCALARS: tuple[tuple[str, Any], ...] = (
+    ("duration_s", MISSING), ("step_s", MISSING), ("seed", 0), ("allow_shoulder", False),
+    ("record_radius_m", 150.0), ("timeout_s", None),
+)
+
+
+def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
+                  controllers: ControllerChecker, bundled: Sequence[str]) -> Scenario | None:
+    """The scenario of the merged dict ``d``, or None if it has a problem (reported).
+    ``report`` names the scenario and its family and holds the sweep values."""
+    n_before = len(report.err.issues)
+    scalars = _scalars(d, report)
+    criteria = _criteria(d, report)
+    controller = controllers.spec(d.get("controller", MISSING), report)
+    net_path, network = resolve_net(d.get("net", MISSING), catalog_path, bundled, report)
+    route = resolve_route(d.get("route", MISSING), network, report)
+    ego = _spec(EgoSpec, d.get("ego", MISSING), "ego", report)
+    stalled_raw = d.get("stalled", [])
+    stalled = _stalled(stalled_raw, report)
+    traffic = _traffic(d.get("traffic", MISSING), scalars, report)
+    if network is not None and route is not None:
+        check_placements(network, route, d.get("ego"), stalled_raw, traffic,
+                         bool(scalars.get("allow_shoulder", False)), report)
+
+    if len(report.err.issues) != n_before:
+        return None
+    if (ego is None or controller is None or net_path is None or route is None
+            or "duration_s" not in scalars or "step_s" not in scalars):
+        return None  # a required key is missing (reported by the loader)
+    try:
+        return Scenario(
+            name=report.name, family=report.family, catalog_path=catalog_path, net=d["net"],
+            net_path=net_path, route=route, ego=ego,
+            stalled=tuple(s for s in stalled if s is not None), traffic=traffic,
+            controller=controller, duration_s=scalars["duration_s"],
+            step_s=scalars["step_s"], seed=scalars["seed"],
+            allow_shoulder=scalars["allow_shoulder"], criteria=criteria,
+            sweep_values=report.swept, record_radius_m=scalars["record_radius_m"],
+            timeout_s=scalars["timeout_s"])
+    except SpecError as exc:  # pragma: no cover - the checks above mirror these
+        report.add(exc.field, exc.expected, exc.got)
+        return None
+
+
+def _scalars(d: dict[str, Any], report: Report) -> dict[str, Any]:
+    """The valid scalar values (defaults filled in); a missing required one is left out."""
+    scalars: dict[str, Any] = {}
+    for key, default in _SCALARS:
+        value = d.get(key, default)
+        if value is MISSING:
+            continue  # reported as missing already
+        problem = Scenario._RULES[key](value)
+        if problem:
+            report.add(key, problem, value)
+        else:
+            scalars[key] = value
+    if ("duration_s" in scalars and "step_s" in scalars
+            and scalars["step_s"] > scalars["duration_s"]):
+        report.add("step_s", f"a step <= duration_s ({scalars['duration_s']:g})",
+                   scalars["step_s"])
+    return scalars
+
+
+def _criteria(d: dict[str, Any], report: Report) -> dict[str, Any]:
+    """The scenario's criteria table (names known to the metrics, values numbers)."""
+    criteria = d.get("criteria", {})
+    if not isinstance(criteria, dict):
+        report.add("criteria", "a table of name -> finite number", criteria)
+        return {}
+    from reports.metrics.criteria import Criteria
+
+    valid = Criteria.names()
+    for k, v in criteria.items():
+        if k not in valid:
+            report.add(f"criteria.{k}", f"a known criterion, one of {', '.join(valid)}", k)
+        elif not rules.is_number(v):
+            report.add(f"criteria.{k}", "a finite number", v)
+    return criteria
+
+
+def _stalled(raw: Any, report: Report) -> list[StalledSpec | None]:
+    if not isinstance(raw, list):
+        report.add("stalled", "a list of tables [{lane = ..., pos_m = ...}, ...]", raw)
+        return []
+    return [_spec(StalledSpec, item, f"stalled.{i}", report) for i, item in enumerate(raw)]
+
+
+def _traffic(raw: Any, scalars: dict[str, Any], report: Report) -> TrafficSpec | None:
+    """The traffic spec; its ``seed`` defaults to the scenario's."""
+    if raw is MISSING:
+        return None
+    if isinstance(raw, dict) and "seed" not in raw:
+        raw = {**raw, "seed": scalars.get("seed", 0)}
+    return _spec(TrafficSpec, raw, "traffic", report)
+
+
+def _spec(cls: type[_Spec], raw: Any, key: str, report: Report) -> _Spec | None:
+    """``cls(**raw)`` for a spec table at ``key``, after reporting every bad field."""
+    if raw is MISSING:
+        return None  # a missing required table is reported by the required-key check
+    if not isinstance(raw, dict):
+        report.add(key, f"a table with keys {list(cls._RULES)}", raw)
+        return None
+    ok = True
+    for k, v in raw.items():
+        if k not in cls._RULES:
+            report.add(f"{key}.{k}", f"one of the keys {list(cls._RULES)}", k)
+            ok = False
+        else:
+            problem = cls._RULES[k](v)
+            if problem:
+                report.add(f"{key}.{k}", problem, v)
+                ok = False
+    for k in cls._REQUIRED:
+        if k not in raw:
+            report.add(f"{key}.{k}", "this required key")
+            ok = False
+    if not ok:
+        return None
+    try:
+        return cls(**raw)
+    except SpecError as exc:
+        report.add(f"{key}.{exc.field}", exc.expected, exc.got)
+        return None

@@ -1,0 +1,106 @@
+"""Controllers of a catalog: the ``controller`` value (a name, or a table with ``name`` and
+options) becomes a :class:`ControllerSpec` once the name is registered and the registry
+builds the controller with those options (once per distinct name and options)."""
+
+from __future__ import annotations
+
+import copy
+import json
+from collections.abc import Iterable
+from typing import Any
+
+from suite.catalog import rules
+from suite.catalog.errors import MISSING
+from suite.catalog.report import Report
+from suite.catalog.specs import ControllerSpec
+
+__all__ = ["ControllerChecker"]
+
+
+class ControllerChecker:
+    """Checks controller names and options; caches per distinct (name, options)."""
+
+    def __init__(self, known: Iterable[str] | None) -> None:
+        self.explicit = known is not None
+        self._cache: dict[str, tuple[str, str, Any] | None] = {}
+        self.registry_error: str | None = None
+        if known is not None:
+            self.known: list[str] = sorted(set(known))
+        else:
+            try:
+                from controllers import registry
+                self.known = list(registry.names())
+            except Exception as exc:  # registry or builtins broken
+                self.known = []
+                self.registry_error = f"{type(exc).__name__}: {exc}"
+
+    def check(self, name: str, options: dict[str, Any]) -> tuple[str, str, Any] | None:
+        """None if fine, else (sub-key, expected, got)."""
+        if name not in self.known:
+            return "name", f"a registered controller, one of {self.known}", name
+        cache_key = json.dumps([name, options], sort_keys=True, default=repr)
+        if cache_key in self._cache:
+            return self._cache[cache_key]
+        result = self._build(name, options)
+        self._cache[cache_key] = result
+        return result
+
+    def _build(self, name: str, options: dict[str, Any]) -> tuple[str, str, Any] | None:
+        try:
+            from controllers import registry
+            from controllers.protocol import ConfigError
+        except Exception:
+            return None  # only reachable with explicit known_controllers
+        if self.explicit:
+            try:
+                available = registry.names()
+            except Exception:
+                return None  # registry unavailable: explicit known_controllers only
+            if name not in available:
+                return None
+        try:
+            registry.make(name, copy.deepcopy(options))
+        except ConfigError as exc:
+            key = exc.key
+            if key == "controller":
+                key = ""
+            elif key.startswith("controller."):
+                key = key[len("controller."):]
+            return key, exc.expected, exc.got
+        except Exception as exc:
+            return "name", f"a controller that can be built ({type(exc).__name__}: {exc})", name
+        return None
+
+
+    def spec(self, raw: Any, report: Report) -> ControllerSpec | None:
+        """The checked spec of a scenario's ``controller`` value; None (reported) if bad."""
+        if raw is MISSING:
+            return None
+        if isinstance(raw, str):
+            name, options = raw, {}
+        elif isinstance(raw, dict):
+            if "name" not in raw:
+                report.add("controller.name", "a controller name in the controller table")
+                return None
+            name = raw["name"]
+            options = {k: v for k, v in raw.items() if k != "name"}
+        else:
+            report.add("controller", "a controller name or a table {name = ..., <options>}",
+                       raw)
+            return None
+        if not isinstance(name, str) or rules.name_rule(name):
+            report.add("controller.name", "a controller name matching [a-z0-9_]+", name)
+            return None
+        bad = rules.non_json_path(options)
+        if bad is not None:
+            report.add(f"controller.{bad[0]}", "a JSON-able value (string, number, bool, "
+                       "list, table)", bad[1])
+            return None
+        if not self.known and self.registry_error:
+            return ControllerSpec(name, options)  # registry problem reported once
+        problem = self.check(name, options)
+        if problem is not None:
+            sub, expected, got = problem
+            report.add(f"controller.{sub}" if sub else "controller", expected, got)
+            return None
+        return ControllerSpec(name, options)

@@ -1,0 +1,19 @@
+"""The keys a scenario table may have: which are required, which may come from
+``[defaults]``, and the optional keys of its sub-tables (valid sweep targets even when
+unset)."""
+
+from __future__ import annotations
+
+__all__ = ["DEFAULT_KEYS", "OPTIONAL_SUBKEYS", "REQUIRED_KEYS", "SCENARIO_KEYS"]
+
+SCENARIO_KEYS = (
+    "name", "net", "route", "ego", "stalled", "traffic", "controller", "duration_s", "step_s",
+    "seed", "allow_shoulder", "criteria", "record_radius_m", "timeout_s", "sweep",
+)
+DEFAULT_KEYS = tuple(k for k in SCENARIO_KEYS if k not in ("name", "sweep"))
+REQUIRED_KEYS = ("name", "net", "ego", "controller", "duration_s", "step_s")
+OPTIONAL_SUBKEYS: dict[str, tuple[str, ...]] = {
+    "ego": ("lane", "pos_m", "speed_mps", "target_speed_mps"),
+    "stalled.*": ("lane", "pos_m", "length_m", "width_m"),
+    "traffic": ("vehicles_per_hour", "seed", "speed_mps", "lanes", "speed_factor_dev"),
+}

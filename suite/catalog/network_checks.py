@@ -1,0 +1,161 @@
+"""A scenario against its road network: the net resolved and loaded, the route checked
+(edges exist and connect; default: the longest edge path), and the ego, stalled vehicles
+and traffic lanes placed on lanes that exist (and admit passenger cars) there."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from suite.catalog import rules
+from suite.catalog.errors import MISSING
+from suite.catalog.nets import bundled_net_path
+from suite.catalog.report import Report
+from suite.catalog.specs import TrafficSpec
+from suite.road.network import RoadNetwork, RoadNetworkError
+
+__all__ = ["check_placements", "resolve_net", "resolve_route"]
+
+
+def resolve_net(raw: Any, catalog_path: Path, bundled: Sequence[str], report: Report
+                ) -> tuple[Path | None, RoadNetwork | None]:
+    """(net file, loaded network) of a scenario's ``net``; Nones where unusable (reported).
+    ``bundled`` names the bundled nets; another value is a path relative to the catalog."""
+    if raw is MISSING:
+        return None, None
+    if not isinstance(raw, str) or not raw:
+        report.add("net", "a bundled net name or a .net.xml path", raw)
+        return None, None
+    path: Path | None = None
+    if raw in bundled:
+        path = bundled_net_path(raw)
+    if path is None:
+        candidate = Path(raw).expanduser()
+        if not candidate.is_absolute():
+            candidate = catalog_path.parent / candidate
+        if candidate.is_file():
+            path = candidate.resolve()
+    if path is None:
+        report.add("net", f"a bundled net (one of {list(bundled)}) or an existing .net.xml "
+                   f"file (relative to {catalog_path.parent})", raw)
+        return None, None
+    try:
+        return path, RoadNetwork.load(path)
+    except RoadNetworkError as exc:
+        report.add("net", f"a readable SUMO network ({exc})", raw)
+        return path, None
+
+
+def resolve_route(raw: Any, network: RoadNetwork | None, report: Report
+                  ) -> tuple[str, ...] | None:
+    """A scenario's checked ``route`` (default: the network's); None if unusable."""
+    if raw is MISSING:
+        return network.default_route() if network is not None else None
+    if (not isinstance(raw, list) or not raw
+            or any(not isinstance(e, str) for e in raw)):
+        report.add("route", "a non-empty list of edge ids (strings)", raw)
+        return None
+    if network is None:
+        return None
+    ok = True
+    for i, eid in enumerate(raw):
+        if not network.has_edge(eid):
+            edges = network.edge_ids()
+            shown = edges if len(edges) <= 20 else [*edges[:20], "..."]
+            report.add(f"route.{i}", f"an edge of {network.path.name} (one of {shown})", eid)
+            ok = False
+    if not ok:
+        return None
+    try:
+        network.validate_route(raw)
+    except ValueError as exc:
+        m = re.match(r"route\[(\d+)\]: (.*)", str(exc))
+        sub = f"route.{m.group(1)}" if m else "route"
+        report.add(sub, "an edge connected from the previous route edge "
+                   f"({m.group(2) if m else exc})", raw[int(m.group(1))] if m else raw)
+        return None
+    return tuple(raw)
+
+
+def check_placements(network: RoadNetwork, route: tuple[str, ...], ego_raw: Any,
+                     stalled_raw: Any, traffic: TrafficSpec | None, allow_shoulder: bool,
+                     report: Report) -> None:
+    """Report the ego, stalled vehicles and traffic lanes that do not fit the network.
+    ``ego_raw`` and ``stalled_raw`` are the raw values (checked where individually valid)."""
+    length = network.route_length_m(route)
+    _check_ego(network, route, length, ego_raw, allow_shoulder, report)
+    for i, item in enumerate(stalled_raw if isinstance(stalled_raw, list) else []):
+        st_lp = _lane_pos(item)
+        if st_lp is not None:
+            _place(network, route, length, st_lp[1], st_lp[0], f"stalled.{i}", report)
+    if traffic is not None and traffic.lanes is not None:
+        _check_traffic_lanes(network, route[0], traffic.lanes, report)
+
+
+def _check_ego(network: RoadNetwork, route: tuple[str, ...], length: float, ego_raw: Any,
+               allow_shoulder: bool, report: Report) -> None:
+    ego_lp = _lane_pos(ego_raw)
+    if ego_lp is None:
+        return
+    lane, pos = ego_lp
+    lanes = _place(network, route, length, pos, lane, "ego", report)
+    if lanes is None:
+        return
+    shoulder, passenger = _lane_props(network, route, pos, lane)
+    if shoulder and not allow_shoulder:
+        report.add("ego.lane", "a lane open to passenger cars (this lane is a hard "
+                   "shoulder; set allow_shoulder = true to start on it)", lane)
+    elif not shoulder and not passenger:
+        report.add("ego.lane", "a lane open to passenger cars", lane)
+
+
+def _check_traffic_lanes(network: RoadNetwork, first: str, lanes: tuple[int, ...],
+                         report: Report) -> None:
+    count = network.lane_count(first)
+    for j, lane in enumerate(lanes):
+        if lane >= count:
+            report.add(f"traffic.lanes.{j}", f"a lane index in 0..{count - 1} (lanes of "
+                       f"the first route edge {first!r})", lane)
+        elif not _lane_allows_passenger(network, first, lane):
+            report.add(f"traffic.lanes.{j}", "a lane open to passenger cars (lane "
+                       f"{lane} of {first!r} is not)", lane)
+
+
+def _place(network: RoadNetwork, route: tuple[str, ...], length: float, pos: float,
+           lane: int, key: str, report: Report) -> int | None:
+    """The lane count at ``pos`` if ``pos`` is on the route and ``lane`` exists there."""
+    if not 0.0 <= pos < length:
+        report.add(f"{key}.pos_m", f"a route position in [0, {length:.1f}) m", pos)
+        return None
+    lanes = network.lanes_at(route, pos)
+    if lane >= lanes:
+        edge, _ = network.locate(route, pos)
+        report.add(f"{key}.lane", f"a lane index in 0..{lanes - 1} (edge {edge!r} at "
+                   f"{pos:g} m on the route has {lanes} lanes)", lane)
+        return None
+    return lanes
+
+
+def _lane_props(network: RoadNetwork, route: tuple[str, ...], pos: float, lane: int
+                ) -> tuple[bool, bool]:
+    """(is a hard shoulder, admits passenger cars) of ``lane`` at route position ``pos``."""
+    edge, _ = network.locate(route, pos)
+    for info in network.lane_info((edge,)):
+        if info.index == lane:
+            return info.is_shoulder, info.allows_passenger
+    return False, True  # pragma: no cover
+
+
+def _lane_allows_passenger(network: RoadNetwork, edge: str, lane: int) -> bool:
+    return any(i.allows_passenger for i in network.lane_info((edge,)) if i.index == lane)
+
+
+def _lane_pos(raw: Any) -> tuple[int, float] | None:
+    """(lane, pos_m) of a raw ego/stalled table if both are individually valid."""
+    if not isinstance(raw, dict) or "lane" not in raw or "pos_m" not in raw:
+        return None
+    if rules.integer(0)(raw["lane"]) or rules.num(0.0)(raw["pos_m"]):
+        return None
+    return int(raw["lane"]), float(raw["pos_m"])

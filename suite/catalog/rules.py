@@ -1,0 +1,133 @@
+"""Field rules: a rule takes a value and returns ``None`` if it fits, else what would.
+
+The spec classes list theirs in ``_RULES``; the loader runs the same rules on raw TOML
+values so that every bad field is reported, not just the first.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from suite.catalog.errors import SpecError
+
+__all__ = ["MAX_SEED", "NAME_RE", "Rule", "as_float", "boolean", "check_fields", "integer",
+           "is_number", "lanes", "name_rule", "non_json_path", "num", "number_map"]
+
+NAME_RE = re.compile(r"^[a-z0-9_]+$")
+MAX_SEED = 2**31 - 1
+
+Rule = Callable[[Any], str | None]
+
+
+def is_number(v: Any) -> bool:
+    """An int or float, not a bool, finite."""
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def num(lo: float | None = None, *, strict: bool = False, optional: bool = False) -> Rule:
+    """A finite number, ``>= lo`` (``> lo`` if ``strict``); ``None`` too if ``optional``."""
+    if lo is None:
+        what = "a finite number"
+    else:
+        what = f"a finite number {'>' if strict else '>='} {lo:g}"
+
+    def check(v: Any) -> str | None:
+        if v is None and optional:
+            return None
+        if not is_number(v):
+            return what
+        if lo is not None and (v < lo or (strict and v == lo)):
+            return what
+        return None
+
+    return check
+
+
+def integer(lo: int = 0, hi: int | None = None) -> Rule:
+    """An int (not a bool) in ``[lo, hi]``, or ``>= lo`` without ``hi``."""
+    what = f"an integer >= {lo}" if hi is None else f"an integer in [{lo}, {hi}]"
+
+    def check(v: Any) -> str | None:
+        if not isinstance(v, int) or isinstance(v, bool):
+            return what
+        if v < lo or (hi is not None and v > hi):
+            return what
+        return None
+
+    return check
+
+
+def boolean(v: Any) -> str | None:
+    return None if isinstance(v, bool) else "a boolean (true/false)"
+
+
+def name_rule(v: Any) -> str | None:
+    """A scenario or controller name: ``[a-z0-9_]+``."""
+    if isinstance(v, str) and NAME_RE.match(v):
+        return None
+    return "a name matching [a-z0-9_]+"
+
+
+def lanes(v: Any) -> str | None:
+    what = "null or a non-empty list of distinct lane indices (integers >= 0)"
+    if v is None:
+        return None
+    if not isinstance(v, list | tuple) or not v:
+        return what
+    if any(not isinstance(x, int) or isinstance(x, bool) or x < 0 for x in v):
+        return what
+    if len(set(v)) != len(v):
+        return what
+    return None
+
+
+def number_map(v: Any) -> str | None:
+    what = "a table of name -> finite number"
+    if not isinstance(v, Mapping):
+        return what
+    if any(not isinstance(k, str) or not is_number(x) for k, x in v.items()):
+        return what
+    return None
+
+
+def non_json_path(value: Any, prefix: str = "") -> tuple[str, Any] | None:
+    """First (dotted path, value) that is not JSON-able, else None."""
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            if not isinstance(k, str):
+                return prefix or str(k), k
+            bad = non_json_path(v, f"{prefix}.{k}" if prefix else k)
+            if bad is not None:
+                return bad
+        return None
+    if isinstance(value, list | tuple):
+        for i, v in enumerate(value):
+            bad = non_json_path(v, f"{prefix}.{i}" if prefix else str(i))
+            if bad is not None:
+                return bad
+        return None
+    if value is None or isinstance(value, str | bool | int):
+        return None
+    if isinstance(value, float) and math.isfinite(value):
+        return None
+    return prefix, value
+
+
+def check_fields(obj: Any) -> None:
+    """Run the class's ``_RULES`` on ``obj``; raise SpecError on the first failure."""
+    for name, rule in obj._RULES.items():
+        value = getattr(obj, name)
+        expected = rule(value)
+        if expected is not None:
+            raise SpecError(name, expected, value)
+
+
+def as_float(obj: Any, *names: str) -> None:
+    """Turn the int fields ``names`` of a frozen dataclass into floats."""
+    for name in names:
+        value = getattr(obj, name)
+        if isinstance(value, int) and not isinstance(value, bool):
+            object.__setattr__(obj, name, float(value))

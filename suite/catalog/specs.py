@@ -1,0 +1,237 @@
+"""The resolved, validated values a catalog yields: the specs of one scenario run
+(:class:`EgoSpec`, :class:`StalledSpec`, :class:`TrafficSpec`, :class:`ControllerSpec`),
+the :class:`Scenario` itself and the :class:`Catalog` of them.
+
+Each spec checks its own fields on construction (``_RULES``) and raises
+:class:`~suite.catalog.errors.SpecError`; the loader checks raw values with the same rules
+first, so that a catalog reports all of its problems.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, ClassVar
+
+from suite.catalog import rules
+from suite.catalog.errors import SpecError
+from suite.catalog.frozen import FrozenMap, thaw, thaw_map
+from suite.catalog.rules import Rule
+
+__all__ = ["Catalog", "ControllerSpec", "EgoSpec", "Scenario", "StalledSpec", "TrafficSpec"]
+
+
+@dataclass(frozen=True)
+class EgoSpec:
+    """Ego start: lane index (0 = rightmost), route position, speed, cruise set-point.
+
+    ``target_speed_mps`` defaults to ``speed_mps`` (NaN on input means "unset").
+    """
+
+    lane: int
+    pos_m: float
+    speed_mps: float
+    target_speed_mps: float = math.nan
+
+    _RULES: ClassVar[dict[str, Rule]] = {
+        "lane": rules.integer(0), "pos_m": rules.num(0.0), "speed_mps": rules.num(0.0),
+        "target_speed_mps": rules.num(0.0),
+    }
+    _REQUIRED: ClassVar[tuple[str, ...]] = ("lane", "pos_m", "speed_mps")
+
+    def __post_init__(self) -> None:
+        if isinstance(self.target_speed_mps, float) and math.isnan(self.target_speed_mps):
+            object.__setattr__(self, "target_speed_mps", self.speed_mps)
+        rules.check_fields(self)
+        rules.as_float(self, "pos_m", "speed_mps", "target_speed_mps")
+
+
+@dataclass(frozen=True)
+class StalledSpec:
+    """A stopped vehicle at route position ``pos_m`` on lane ``lane``."""
+
+    lane: int
+    pos_m: float
+    length_m: float = 4.8
+    width_m: float = 1.9
+
+    _RULES: ClassVar[dict[str, Rule]] = {
+        "lane": rules.integer(0), "pos_m": rules.num(0.0),
+        "length_m": rules.num(0.0, strict=True), "width_m": rules.num(0.0, strict=True),
+    }
+    _REQUIRED: ClassVar[tuple[str, ...]] = ("lane", "pos_m")
+
+    def __post_init__(self) -> None:
+        rules.check_fields(self)
+        rules.as_float(self, "pos_m", "length_m", "width_m")
+
+
+@dataclass(frozen=True)
+class TrafficSpec:
+    """Background traffic. ``lanes`` None = every lane admitting passenger cars;
+    ``speed_mps`` None = the lane speed limit; ``speed_factor_dev`` = SUMO speedDev."""
+
+    vehicles_per_hour: float
+    seed: int
+    speed_mps: float | None = None
+    lanes: tuple[int, ...] | None = None
+    speed_factor_dev: float = 0.1
+
+    _RULES: ClassVar[dict[str, Rule]] = {
+        "vehicles_per_hour": rules.num(0.0), "seed": rules.integer(0, rules.MAX_SEED),
+        "speed_mps": rules.num(0.0, strict=True, optional=True), "lanes": rules.lanes,
+        "speed_factor_dev": rules.num(0.0),
+    }
+    _REQUIRED: ClassVar[tuple[str, ...]] = ("vehicles_per_hour",)
+
+    def __post_init__(self) -> None:
+        rules.check_fields(self)
+        if self.lanes is not None:
+            object.__setattr__(self, "lanes", tuple(self.lanes))
+        rules.as_float(self, "vehicles_per_hour", "speed_factor_dev")
+        if self.speed_mps is not None:
+            rules.as_float(self, "speed_mps")
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """A registered controller and its (immutable, JSON-able) options."""
+
+    name: str
+    options: Mapping[str, Any] = field(default_factory=lambda: FrozenMap())
+
+    def __post_init__(self) -> None:
+        if rules.name_rule(self.name):
+            raise SpecError("name", "a controller name matching [a-z0-9_]+", self.name)
+        if not isinstance(self.options, Mapping):
+            raise SpecError("options", "a table of options", self.options)
+        bad = rules.non_json_path(self.options)
+        if bad is not None:
+            raise SpecError(bad[0] or "options", "a JSON-able value (string, number, bool, "
+                            "list, table)", bad[1])
+        if not isinstance(self.options, FrozenMap):
+            object.__setattr__(self, "options", FrozenMap(copy.deepcopy(dict(self.options))))
+
+    def options_dict(self) -> dict[str, Any]:
+        """A deep, mutable copy of the options (what the factory gets)."""
+        return thaw_map(self.options)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "options": self.options_dict()}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One fully resolved, validated scenario run."""
+
+    name: str
+    family: str
+    catalog_path: Path
+    net: str
+    net_path: Path
+    route: tuple[str, ...]
+    ego: EgoSpec
+    stalled: tuple[StalledSpec, ...]
+    traffic: TrafficSpec | None
+    controller: ControllerSpec
+    duration_s: float
+    step_s: float
+    seed: int
+    allow_shoulder: bool = False
+    criteria: Mapping[str, float] = field(default_factory=lambda: FrozenMap())
+    sweep_values: Mapping[str, Any] = field(default_factory=lambda: FrozenMap())
+    record_radius_m: float = 150.0
+    timeout_s: float | None = None
+
+    _RULES: ClassVar[dict[str, Rule]] = {
+        "name": rules.name_rule, "family": rules.name_rule,
+        "duration_s": rules.num(0.0, strict=True), "step_s": rules.num(0.0, strict=True),
+        "seed": rules.integer(0, rules.MAX_SEED), "allow_shoulder": rules.boolean,
+        "criteria": rules.number_map, "record_radius_m": rules.num(0.0, strict=True),
+        "timeout_s": rules.num(0.0, strict=True, optional=True),
+    }
+
+    def __post_init__(self) -> None:
+        rules.check_fields(self)
+        if self.step_s > self.duration_s:
+            raise SpecError("step_s", f"a step <= duration_s ({self.duration_s})", self.step_s)
+        if not isinstance(self.ego, EgoSpec):
+            raise SpecError("ego", "an EgoSpec", self.ego)
+        if not isinstance(self.controller, ControllerSpec):
+            raise SpecError("controller", "a ControllerSpec", self.controller)
+        if self.traffic is not None and not isinstance(self.traffic, TrafficSpec):
+            raise SpecError("traffic", "a TrafficSpec or None", self.traffic)
+        stalled = tuple(self.stalled)
+        if any(not isinstance(s, StalledSpec) for s in stalled):
+            raise SpecError("stalled", "a sequence of StalledSpec", self.stalled)
+        route = tuple(self.route)
+        if not route or any(not isinstance(e, str) for e in route):
+            raise SpecError("route", "a non-empty sequence of edge ids", self.route)
+        object.__setattr__(self, "stalled", stalled)
+        object.__setattr__(self, "route", route)
+        object.__setattr__(self, "catalog_path", Path(self.catalog_path))
+        object.__setattr__(self, "net_path", Path(self.net_path))
+        object.__setattr__(self, "criteria", FrozenMap(
+            {k: float(v) for k, v in self.criteria.items()}))
+        object.__setattr__(self, "sweep_values", FrozenMap(self.sweep_values))
+        rules.as_float(self, "duration_s", "step_s", "record_radius_m")
+        if self.timeout_s is not None:
+            rules.as_float(self, "timeout_s")
+
+    @property
+    def steps(self) -> int:
+        """Number of simulation steps (``round(duration_s / step_s)``)."""
+        return int(round(self.duration_s / self.step_s))
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-serialisable dict of every field."""
+        return {
+            "name": self.name,
+            "family": self.family,
+            "catalog_path": str(self.catalog_path),
+            "net": self.net,
+            "net_path": str(self.net_path),
+            "route": list(self.route),
+            "ego": _plain_dataclass(self.ego),
+            "stalled": [_plain_dataclass(s) for s in self.stalled],
+            "traffic": None if self.traffic is None else _plain_dataclass(self.traffic),
+            "controller": self.controller.as_dict(),
+            "duration_s": self.duration_s,
+            "step_s": self.step_s,
+            "seed": self.seed,
+            "allow_shoulder": self.allow_shoulder,
+            "criteria": thaw(self.criteria),
+            "sweep_values": thaw(self.sweep_values),
+            "record_radius_m": self.record_radius_m,
+            "timeout_s": self.timeout_s,
+        }
+
+
+def _plain_dataclass(obj: Any) -> dict[str, Any]:
+    return {f.name: thaw(getattr(obj, f.name)) for f in fields(obj)}
+
+
+@dataclass(frozen=True)
+class Catalog:
+    """A loaded catalog: its path and its scenarios in file order, sweeps expanded."""
+
+    path: Path
+    scenarios: tuple[Scenario, ...]
+
+    def names(self) -> list[str]:
+        return [s.name for s in self.scenarios]
+
+    def get(self, name: str) -> Scenario:
+        for s in self.scenarios:
+            if s.name == name:
+                return s
+        raise KeyError(f"{self.path}: no scenario {name!r}")
+
+    def __len__(self) -> int:
+        return len(self.scenarios)
+
+    def __iter__(self) -> Iterator[Scenario]:
+        return iter(self.scenarios)
