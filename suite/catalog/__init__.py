@@ -38,7 +38,8 @@ Keys of a scenario (all may also appear in ``[defaults]`` except ``name`` and ``
                     passenger cars), ``speed_factor_dev`` (0.1). Default: no traffic.
 ``controller``      required (usually from ``[defaults]``): a name, or a table with ``name``
                     and the controller's options.
-``duration_s``      required, > 0.         ``step_s``: required, > 0 and <= ``duration_s``.
+``duration_s``      required, > 0.         ``step_s``: required, <= ``duration_s``, at least
+                    0.001 s and a whole number of milliseconds (SUMO's clock).
 ``seed``            int in [0, 2**31 - 1]; default 0.
 ``allow_shoulder``  bool, default false: the ego may use a hard shoulder.
 ``criteria``        table name -> number: pass/fail limits overriding the defaults of the

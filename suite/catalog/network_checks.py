@@ -85,30 +85,66 @@ def check_placements(network: RoadNetwork, route: tuple[str, ...], ego_raw: Any,
     """Report the ego, stalled vehicles and traffic lanes that do not fit the network.
     ``ego_raw`` and ``stalled_raw`` are the raw values (checked where individually valid)."""
     length = network.route_length_m(route)
-    _check_ego(network, route, length, ego_raw, allow_shoulder, report)
+    ego_ok = _check_ego(network, route, length, ego_raw, allow_shoulder, report)
+    placed: list[tuple[str, int, float, float]] = []  # key, lane, position, length
     for i, item in enumerate(stalled_raw if isinstance(stalled_raw, list) else []):
         st_lp = _lane_pos(item)
-        if st_lp is not None:
-            _place(network, route, length, st_lp[1], st_lp[0], f"stalled.{i}", report)
+        if st_lp is not None and _place(network, route, length, st_lp[1], st_lp[0],
+                                        f"stalled.{i}", report) is not None:
+            placed.append((f"stalled.{i}", st_lp[0], st_lp[1], _length(item)))
+    if ego_ok:
+        lane, pos = _lane_pos(ego_raw) or (0, 0.0)
+        placed.insert(0, ("ego", lane, pos, EGO_LENGTH_M))
+    _check_overlaps(network, route, placed, report)
     if traffic is not None and traffic.lanes is not None:
         _check_traffic_lanes(network, route[0], traffic.lanes, report)
 
 
+EGO_LENGTH_M = 4.8  # controllers.plant.vehicle_model.VehicleParams().length_m
+STALLED_LENGTH_M = 4.8  # StalledSpec's default
+MIN_BUMPER_GAP_M = 1.0  # SUMO inserts nothing closer than this to another car
+
+
+def _length(raw: Any) -> float:
+    value = raw.get("length_m", STALLED_LENGTH_M) if isinstance(raw, dict) else STALLED_LENGTH_M
+    return float(value) if rules.is_number(value) and value > 0 else STALLED_LENGTH_M
+
+
+def _check_overlaps(network: RoadNetwork, route: tuple[str, ...],
+                    placed: list[tuple[str, int, float, float]], report: Report) -> None:
+    """Vehicles placed on one lane of one edge must not overlap: SUMO would refuse to
+    insert the later one (positions are front bumpers, boxes reach back by a length)."""
+    where = [(key, network.locate(route, pos)[0], lane, pos, length)
+             for key, lane, pos, length in placed]
+    for j, (key, edge, lane, pos, length) in enumerate(where):
+        for other, o_edge, o_lane, o_pos, o_length in where[:j]:
+            if (edge, lane) != (o_edge, o_lane):
+                continue
+            ahead, behind = (pos, o_pos) if pos >= o_pos else (o_pos, pos)
+            ahead_len = length if pos >= o_pos else o_length
+            if ahead - ahead_len - behind < MIN_BUMPER_GAP_M:
+                report.add(f"{key}.pos_m", f"a position clear of {other} (both on lane {lane} "
+                           f"of {edge!r}: their boxes overlap or leave less than "
+                           f"{MIN_BUMPER_GAP_M:g} m between them)", pos)
+
+
 def _check_ego(network: RoadNetwork, route: tuple[str, ...], length: float, ego_raw: Any,
-               allow_shoulder: bool, report: Report) -> None:
+               allow_shoulder: bool, report: Report) -> bool:
+    """Report an ego that does not fit; True when it is placed on an existing lane."""
     ego_lp = _lane_pos(ego_raw)
     if ego_lp is None:
-        return
+        return False
     lane, pos = ego_lp
     lanes = _place(network, route, length, pos, lane, "ego", report)
     if lanes is None:
-        return
+        return False
     shoulder, passenger = _lane_props(network, route, pos, lane)
     if shoulder and not allow_shoulder:
         report.add("ego.lane", "a lane open to passenger cars (this lane is a hard "
                    "shoulder; set allow_shoulder = true to start on it)", lane)
     elif not shoulder and not passenger:
         report.add("ego.lane", "a lane open to passenger cars", lane)
+    return True
 
 
 def _check_traffic_lanes(network: RoadNetwork, first: str, lanes: tuple[int, ...],

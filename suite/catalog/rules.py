@@ -46,6 +46,18 @@ def num(lo: float | None = None, *, strict: bool = False, optional: bool = False
     return check
 
 
+SUMO_TICK_S = 0.001  # SUMO counts time in milliseconds
+
+
+def sumo_step(v: Any) -> str | None:
+    """A simulation step SUMO can run: a whole number of milliseconds, at least one."""
+    what = "a step of at least 0.001 s and a whole number of milliseconds (SUMO's clock)"
+    if not is_number(v) or v < SUMO_TICK_S - 1e-12:
+        return what
+    ticks = v / SUMO_TICK_S
+    return None if abs(ticks - round(ticks)) < 1e-6 else what
+
+
 def integer(lo: int = 0, hi: int | None = None) -> Rule:
     """An int (not a bool) in ``[lo, hi]``, or ``>= lo`` without ``hi``."""
     what = f"an integer >= {lo}" if hi is None else f"an integer in [{lo}, {hi}]"

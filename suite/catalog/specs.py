@@ -148,7 +148,7 @@ class Scenario:
 
     _RULES: ClassVar[dict[str, Rule]] = {
         "name": rules.name_rule, "family": rules.name_rule,
-        "duration_s": rules.num(0.0, strict=True), "step_s": rules.num(0.0, strict=True),
+        "duration_s": rules.num(0.0, strict=True), "step_s": rules.sumo_step,
         "seed": rules.integer(0, rules.MAX_SEED), "allow_shoulder": rules.boolean,
         "criteria": rules.number_map, "record_radius_m": rules.num(0.0, strict=True),
         "timeout_s": rules.num(0.0, strict=True, optional=True),
