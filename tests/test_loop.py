@@ -27,7 +27,9 @@ from suite.world.protocol import EgoPose, Scene, WorldEgo, WorldSummary
 DT = 0.02
 W = 3.5
 ROAD = np.array([[0.0, 0.0], [3000.0, 0.0]])
-VEHICLE = VehicleParams()
+# Coasting at constant speed: the probe commands no torque, so the plant has no drag
+# or rolling resistance here (the loop, not the plant, is under test).
+VEHICLE = VehicleParams(drag_coeff=0.0, rolling_resistance_coeff=0.0)
 
 
 def stalled_at(x_m: float, y_m: float = 0.0) -> Callable[[float], Traffic]:

@@ -16,6 +16,12 @@ Inputs: front-wheel steering angle delta [rad], total drive torque T [N m]
 Slip angles are singular at standstill; they are computed with u clamped to
 ``min_slip_speed_mps`` (a common low-speed guard) and the speed is kept >= 0 by
 clamping braking force when the car is (nearly) stopped.
+
+This linear model is the controllers' (the outer OCP's and the inner loop's preview,
+:mod:`controllers.two_loop.preview`). The simulated car, :class:`SingleTrackPlant`,
+integrates the same model with the limits of a real car instead: a friction ellipse per
+axle, a drive power limit, aerodynamic drag and rolling resistance
+(:mod:`controllers.plant.limited`, docs/plant.md); the inner loop absorbs the difference.
 """
 
 from __future__ import annotations
@@ -26,12 +32,36 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from controllers.plant.limited import PLANT_ARRAY_SIZE, axle_forces, plant_rk4
+
 STATE_NAMES = ("X_m", "Y_m", "psi_rad", "u_mps", "v_mps", "r_radps")
 
 
 @dataclass(frozen=True)
 class VehicleParams:
-    """Mid-size passenger car (docs/method.md §6). Every field carries its unit."""
+    """Mid-size passenger car (docs/method.md §6; limits: docs/plant.md). Units in the names.
+
+    The first block is the paper's linear single-track model, shared by the controllers
+    and the plant. The second block holds the limits only the plant applies
+    (:mod:`controllers.plant.limited`); their defaults describe a mid-size saloon (VW
+    Passat / Toyota Camry class, 1500 kg):
+
+    * ``friction_coeff`` mu = 1.0: peak tyre-road friction of summer tyres on dry asphalt
+      (0.9-1.1; wet 0.5-0.7, snow 0.2-0.3). A road property: the catalog's ``friction``
+      key sets it per scenario. ``lateral_friction_ratio`` = mu_y / mu: 1 gives the
+      friction circle, < 1 an ellipse narrower across than along.
+    * ``max_drive_power_w`` = 110 kW at the wheels: a 1.5-2.0 l engine of a mid-size car
+      (100-120 kW rated). Braking has no power limit, only friction and the brake torque.
+    * ``drag_coeff`` c_d = 0.29 and ``frontal_area_m2`` A = 2.2 m^2: mid-size saloons have
+      c_d 0.26-0.32 and A 2.1-2.3 m^2 (c_d A ~ 0.64 m^2); ``air_density_kgpm3`` = 1.2
+      (dry air at 20 degC, sea level).
+    * ``rolling_resistance_coeff`` c_rr = 0.012: passenger-car tyres on asphalt
+      (0.010-0.015).
+
+    With these the top speed, where 110 kW = (rho c_d A v^2 / 2 + c_rr m g) v, is
+    63.7 m/s (229 km/h); the drive force is torque-limited (3000 N m / 0.3 m = 10 kN,
+    6.7 m/s^2) below 11 m/s and power-limited above (2.4 m/s^2 of drive at 31 m/s).
+    """
 
     mass_kg: float = 1500.0
     yaw_inertia_kgm2: float = 2500.0
@@ -47,19 +77,35 @@ class VehicleParams:
     max_drive_torque_nm: float = 3000.0
     max_brake_torque_nm: float = 4500.0  # magnitude; applied as negative torque
     min_slip_speed_mps: float = 1.0
+    # --- limits of the plant only (docs/plant.md)
+    friction_coeff: float = 1.0  # mu [-], tyre-road, longitudinal
+    lateral_friction_ratio: float = 1.0  # mu_y / mu [-]; 1 = friction circle
+    max_drive_power_w: float = 110_000.0  # P_max [W] at the wheels, traction only
+    drag_coeff: float = 0.29  # c_d [-]
+    frontal_area_m2: float = 2.2  # A [m^2]
+    air_density_kgpm3: float = 1.2  # rho_air [kg/m^3]
+    rolling_resistance_coeff: float = 0.012  # c_rr [-]
+    gravity_mps2: float = 9.81  # g [m/s^2]
 
     def __post_init__(self) -> None:
         positive = (
             "mass_kg", "yaw_inertia_kgm2", "cg_to_front_axle_m", "cg_to_rear_axle_m",
             "cornering_stiffness_front_npr", "cornering_stiffness_rear_npr", "wheel_radius_m",
             "length_m", "width_m", "max_steer_rad", "max_drive_torque_nm",
-            "max_brake_torque_nm", "min_slip_speed_mps",
+            "max_brake_torque_nm", "min_slip_speed_mps", "friction_coeff",
+            "lateral_friction_ratio", "max_drive_power_w", "air_density_kgpm3",
+            "gravity_mps2",
         )
         for name in positive:
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+            if not _is_real(value) or not value > 0:
                 raise ValueError(
                     f"VehicleParams.{name} must be a finite positive number, got {value!r}")
+        for name in ("drag_coeff", "frontal_area_m2", "rolling_resistance_coeff"):
+            value = getattr(self, name)
+            if not _is_real(value) or value < 0:
+                raise ValueError(
+                    f"VehicleParams.{name} must be a finite number >= 0, got {value!r}")
         if self.front_overhang_m < 0:
             raise ValueError(
                 f"VehicleParams.front_overhang_m must be >= 0, got {self.front_overhang_m}")
@@ -97,6 +143,36 @@ class VehicleParams:
             ],
             dtype=np.float64,
         )
+
+    @property
+    def static_axle_loads_n(self) -> tuple[float, float]:
+        """(F_z1, F_z2) [N]: the weight m g shared by the axles, m g b / L and m g a / L."""
+        weight = self.mass_kg * self.gravity_mps2
+        return (weight * self.cg_to_rear_axle_m / self.wheelbase_m,
+                weight * self.cg_to_front_axle_m / self.wheelbase_m)
+
+    def plant_array(self) -> np.ndarray:
+        """Packed parameters of the plant's limited model (:mod:`controllers.plant.limited`,
+        layout ``P_*`` there): the linear model's eight, then mu, mu_y, P_max,
+        rho c_d A / 2, c_rr m g, F_z1, F_z2."""
+        fz1, fz2 = self.static_axle_loads_n
+        out = np.array(
+            [
+                *self.as_array(), self.friction_coeff,
+                self.friction_coeff * self.lateral_friction_ratio, self.max_drive_power_w,
+                0.5 * self.air_density_kgpm3 * self.drag_coeff * self.frontal_area_m2,
+                self.rolling_resistance_coeff * self.mass_kg * self.gravity_mps2, fz1, fz2,
+            ],
+            dtype=np.float64,
+        )
+        if out.shape != (PLANT_ARRAY_SIZE,):  # pragma: no cover - layout guard
+            raise RuntimeError("VehicleParams.plant_array: layout out of date")
+        return out
+
+
+def _is_real(value: object) -> bool:
+    return (isinstance(value, int | float) and not isinstance(value, bool)
+            and math.isfinite(value))
 
 
 @numba.njit(cache=True, fastmath=False)
@@ -143,12 +219,35 @@ def stvm_rk4(state: np.ndarray, steer_rad: float, torque_nm: float, p: np.ndarra
     return x
 
 
-class SingleTrackPlant:
-    """The ego's ground truth: an STVM integrated with RK4 sub-steps.
+@dataclass(frozen=True)
+class AxleForces:
+    """Tyre forces of both axles after the plant's limits [N] (each in its wheel's
+    frame: x along the wheel, y across it) and how much of each axle's friction ellipse
+    the unlimited forces would use [-] (> 1: the axle slides, its force was scaled back
+    onto the ellipse)."""
 
-    ``step`` saturates the commands to the vehicle's limits, integrates over the
+    fx_front_n: float
+    fy_front_n: float
+    fx_rear_n: float
+    fy_rear_n: float
+    friction_use_front: float
+    friction_use_rear: float
+
+    @property
+    def saturated(self) -> bool:
+        """Either axle at its friction limit."""
+        return self.friction_use_front > 1.0 or self.friction_use_rear > 1.0
+
+
+class SingleTrackPlant:
+    """The ego's ground truth: the single-track model with a real car's limits
+    (:mod:`controllers.plant.limited`: friction ellipse per axle, drive power limit,
+    drag, rolling resistance), integrated with RK4 sub-steps.
+
+    ``step`` saturates the commands to the actuators' ranges, integrates over the
     control period and returns the new state (6,). Body-frame accelerations
-    a_x = u' - r v and a_y = v' + r u of the last step are kept for the trace.
+    a_x = u' - r v and a_y = v' + r u of the last step are kept for the trace, and
+    :attr:`last_forces` holds the tyre forces at the end of the last step.
     """
 
     def __init__(self, params: VehicleParams, state: np.ndarray,
@@ -159,11 +258,19 @@ class SingleTrackPlant:
         if state.shape != (6,) or not np.all(np.isfinite(state)):
             raise ValueError(f"plant state must be 6 finite numbers, got {state!r}")
         self.params = params
-        self._p = params.as_array()
+        self._q = params.plant_array()
         self.state = state.copy()
         self.substeps = substeps_per_step
         self.long_acc_mps2 = 0.0
         self.lat_acc_mps2 = 0.0
+        self.last_forces = self.forces(0.0, 0.0)
+
+    def forces(self, steer_rad: float, torque_nm: float) -> AxleForces:
+        """Tyre forces at the current state under a (saturated) command."""
+        steer, torque = self.saturate(steer_rad, torque_nm)
+        f = axle_forces(self.state, steer, torque, self._q)
+        return AxleForces(float(f[0]), float(f[1]), float(f[2]), float(f[3]), float(f[4]),
+                          float(f[5]))
 
     def saturate(self, steer_rad: float, torque_nm: float) -> tuple[float, float]:
         p = self.params
@@ -183,8 +290,9 @@ class SingleTrackPlant:
             self.lat_acc_mps2 = 0.0
             self.state = before.copy()
             self.state[3:] = 0.0
+            self.last_forces = self.forces(0.0, 0.0)
             return self.state.copy()
-        after = stvm_rk4(before, steer, torque, self._p, dt_s, self.substeps)
+        after = plant_rk4(before, steer, torque, self._q, dt_s, self.substeps)
         # Mean body-frame acceleration over the step from the velocity change.
         du = (after[3] - before[3]) / dt_s
         dv = (after[4] - before[4]) / dt_s
@@ -194,6 +302,7 @@ class SingleTrackPlant:
         self.long_acc_mps2 = float(du - r_mid * v_mid)
         self.lat_acc_mps2 = float(dv + r_mid * u_mid)
         self.state = after
+        self.last_forces = self.forces(steer, torque)
         return after.copy()
 
     def front_bumper_xy(self) -> tuple[float, float]:
