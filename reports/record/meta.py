@@ -49,6 +49,7 @@ class RunInfo:
     scenario_spec: dict[str, Any] = field(default_factory=dict)
     record_radius_m: float = 150.0
     hwyeval_version: str = ""
+    friction: float = 1.0  # tyre-road friction coefficient mu of the plant [-]
 
 
 @dataclass(frozen=True)

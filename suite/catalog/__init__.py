@@ -15,6 +15,8 @@ This file format is a public contract. A catalog looks like::
     ego = { lane = 1, pos_m = 50.0, speed_mps = 25.0, target_speed_mps = 25.0 }
     stalled = [ { lane = 1, pos_m = 400.0 } ]        # zero or more; pos_m along the route
     traffic = { vehicles_per_hour = 1500, seed = 7 } # optional background traffic
+    ramp_traffic = [ { edge = "ramp", vehicles_per_hour = 400 } ]  # optional, on-ramps
+    friction = 0.6                                   # optional road friction (default 1)
     controller = { name = "lane_keep" }              # a table may carry options
     [scenario.sweep]                # optional: cartesian product, one scenario per combination
     "stalled.0.pos_m" = [300.0, 500.0]
@@ -35,7 +37,17 @@ Keys of a scenario (all may also appear in ``[defaults]`` except ``name`` and ``
 ``traffic``         table: ``vehicles_per_hour`` (required, >= 0), ``seed`` (default: the
                     scenario's ``seed``), ``speed_mps`` (default: lane speed limit),
                     ``lanes`` (default: every lane of the first route edge that admits
-                    passenger cars), ``speed_factor_dev`` (0.1). Default: no traffic.
+                    passenger cars), ``speed_factor_dev`` (0.1), ``lane_speeds_mps``
+                    (table lane index -> speed [m/s] > 0, e.g. ``{ 2 = 20.0 }``: the
+                    traffic of those lanes drives at most that fast and keeps its lane,
+                    e.g. slower traffic in the passing lane; each lane must get traffic).
+                    Default: no traffic.
+``ramp_traffic``    list of tables, one per on-ramp: ``edge`` (required: an edge off the
+                    route whose lane connections lead onto it within 8 edges),
+                    ``vehicles_per_hour`` (required, >= 0), ``speed_mps`` (departure and
+                    maximum speed [m/s] > 0; default: the lanes' limits). A Poisson flow
+                    enters at ``edge``, joins the route and follows it to its end; cars
+                    are also spread over the ramp at t = 0. Default: none.
 ``controller``      required (usually from ``[defaults]``): a name, or a table with ``name``
                     and the controller's options.
 ``duration_s``      required, > 0.         ``step_s``: required, <= ``duration_s``, at least
@@ -46,6 +58,10 @@ Keys of a scenario (all may also appear in ``[defaults]`` except ``name`` and ``
                     metrics (names are not checked here).
 ``record_radius_m`` > 0, default 150: vehicles within this distance of the ego are logged.
 ``timeout_s``       > 0: wall-clock limit of one run. Default: none.
+``friction``        tyre-road friction coefficient mu of the road, in (0, 2]; default 1.0
+                    (dry asphalt; ~0.6 wet). The plant's friction limit
+                    (``VehicleParams.friction_coeff``, docs/plant.md); SUMO's own driver
+                    and the background traffic do not use it.
 ``sweep``           table dotted-path -> non-empty list (see below).
 =================== =========================================================================
 
@@ -75,7 +91,9 @@ Validation against the network: route edges exist and connect; ``ego`` and ``sta
 positions lie in ``[0, route length)``; their lanes exist at that position
 (:meth:`RoadNetwork.lanes_at`); the ego's start lane admits passenger cars, or is a hard
 shoulder and ``allow_shoulder`` is true; traffic lanes exist on the first route edge and
-admit passenger cars.
+admit passenger cars, and so do the lanes of ``traffic.lane_speeds_mps`` (which must also
+get traffic); a ``ramp_traffic`` edge exists, is off the route, admits passenger cars and
+leads onto the route (:func:`~suite.catalog.traffic_checks.ramp_route`).
 
 Controllers: the name must be one of ``controllers.registry.names()``; the options are
 checked by building the controller once per distinct (name, options) with
@@ -105,7 +123,8 @@ rules), :mod:`~suite.catalog.specs` (the resolved scenario), :mod:`~suite.catalo
 expanding), :mod:`~suite.catalog.build` (checking and building one scenario),
 :mod:`~suite.catalog.report` (where a problem is reported),
 :mod:`~suite.catalog.controller_check` (controllers),
-:mod:`~suite.catalog.network_checks` (the scenario against its network) and
+:mod:`~suite.catalog.network_checks` (the scenario against its network),
+:mod:`~suite.catalog.traffic_checks` (lane speeds and on-ramp traffic against it) and
 :mod:`~suite.catalog.filtering` (selecting scenarios by name).
 """
 
@@ -118,6 +137,7 @@ from suite.catalog.specs import (
     Catalog,
     ControllerSpec,
     EgoSpec,
+    RampTrafficSpec,
     Scenario,
     StalledSpec,
     TrafficSpec,
@@ -131,6 +151,7 @@ __all__ = [
     "ControllerSpec",
     "EgoSpec",
     "FrozenMap",
+    "RampTrafficSpec",
     "Scenario",
     "SpecError",
     "StalledSpec",

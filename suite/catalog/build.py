@@ -2,8 +2,9 @@
 field and, if it has no problem, built into a :class:`Scenario`.
 
 Every problem is reported through a :class:`~suite.catalog.report.Report`, in a fixed
-order: scalars, criteria, controller, net, route, ego, stalled, traffic, then the
-placements on the network (only if the net and route are usable).
+order: scalars, criteria, controller, net, route, ego, stalled, traffic, ramp traffic,
+then the placements and the traffic on the network (only if the net and route are
+usable).
 """
 
 from __future__ import annotations
@@ -17,16 +18,17 @@ from suite.catalog.controller_check import ControllerChecker
 from suite.catalog.errors import MISSING, SpecError
 from suite.catalog.network_checks import check_placements, resolve_net, resolve_route
 from suite.catalog.report import Report
-from suite.catalog.specs import EgoSpec, Scenario, StalledSpec, TrafficSpec
+from suite.catalog.specs import EgoSpec, RampTrafficSpec, Scenario, StalledSpec, TrafficSpec
+from suite.catalog.traffic_checks import check_traffic
 
 __all__ = ["build_variant"]
 
-_Spec = TypeVar("_Spec", EgoSpec, StalledSpec, TrafficSpec)
+_Spec = TypeVar("_Spec", EgoSpec, StalledSpec, TrafficSpec, RampTrafficSpec)
 
 # Scalar keys of a scenario and their defaults (MISSING: required).
 _SCALARS: tuple[tuple[str, Any], ...] = (
     ("duration_s", MISSING), ("step_s", MISSING), ("seed", 0), ("allow_shoulder", False),
-    ("record_radius_m", 150.0), ("timeout_s", None),
+    ("record_radius_m", 150.0), ("timeout_s", None), ("friction", 1.0),
 )
 
 
@@ -44,9 +46,11 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
     stalled_raw = d.get("stalled", [])
     stalled = _stalled(stalled_raw, report)
     traffic = _traffic(d.get("traffic", MISSING), scalars, report)
+    ramps = _ramps(d.get("ramp_traffic", []), report)
     if network is not None and route is not None:
         check_placements(network, route, d.get("ego"), stalled_raw, traffic,
                          bool(scalars.get("allow_shoulder", False)), report)
+        check_traffic(network, route, traffic, ramps, report)
 
     if len(report.err.issues) != n_before:
         return None
@@ -62,7 +66,8 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
             step_s=scalars["step_s"], seed=scalars["seed"],
             allow_shoulder=scalars["allow_shoulder"], criteria=criteria,
             sweep_values=report.swept, record_radius_m=scalars["record_radius_m"],
-            timeout_s=scalars["timeout_s"])
+            timeout_s=scalars["timeout_s"], friction=scalars["friction"],
+            ramp_traffic=tuple(r for r in ramps if r is not None))
     except SpecError as exc:  # pragma: no cover - the checks above mirror these
         report.add(exc.field, exc.expected, exc.got)
         return None
@@ -109,6 +114,15 @@ def _stalled(raw: Any, report: Report) -> list[StalledSpec | None]:
         report.add("stalled", "a list of tables [{lane = ..., pos_m = ...}, ...]", raw)
         return []
     return [_spec(StalledSpec, item, f"stalled.{i}", report) for i, item in enumerate(raw)]
+
+
+def _ramps(raw: Any, report: Report) -> list[RampTrafficSpec | None]:
+    if not isinstance(raw, list):
+        report.add("ramp_traffic", "a list of tables [{edge = ..., vehicles_per_hour = ...}, "
+                   "...]", raw)
+        return []
+    return [_spec(RampTrafficSpec, item, f"ramp_traffic.{i}", report)
+            for i, item in enumerate(raw)]
 
 
 def _traffic(raw: Any, scalars: dict[str, Any], report: Report) -> TrafficSpec | None:

@@ -8,12 +8,15 @@ __all__ = ["DEFAULT_KEYS", "OPTIONAL_SUBKEYS", "REQUIRED_KEYS", "SCENARIO_KEYS"]
 
 SCENARIO_KEYS = (
     "name", "net", "route", "ego", "stalled", "traffic", "controller", "duration_s", "step_s",
-    "seed", "allow_shoulder", "criteria", "record_radius_m", "timeout_s", "sweep",
+    "seed", "allow_shoulder", "criteria", "record_radius_m", "timeout_s", "friction",
+    "ramp_traffic", "sweep",
 )
 DEFAULT_KEYS = tuple(k for k in SCENARIO_KEYS if k not in ("name", "sweep"))
 REQUIRED_KEYS = ("name", "net", "ego", "controller", "duration_s", "step_s")
 OPTIONAL_SUBKEYS: dict[str, tuple[str, ...]] = {
     "ego": ("lane", "pos_m", "speed_mps", "target_speed_mps"),
     "stalled.*": ("lane", "pos_m", "length_m", "width_m"),
-    "traffic": ("vehicles_per_hour", "seed", "speed_mps", "lanes", "speed_factor_dev"),
+    "traffic": ("vehicles_per_hour", "seed", "speed_mps", "lanes", "speed_factor_dev",
+                "lane_speeds_mps"),
+    "ramp_traffic.*": ("edge", "vehicles_per_hour", "speed_mps"),
 }

@@ -13,8 +13,9 @@ from typing import Any
 
 from suite.catalog.errors import SpecError
 
-__all__ = ["MAX_SEED", "NAME_RE", "Rule", "as_float", "boolean", "check_fields", "integer",
-           "is_number", "lanes", "name_rule", "non_json_path", "num", "number_map"]
+__all__ = ["MAX_SEED", "NAME_RE", "Rule", "as_float", "boolean", "check_fields", "edge_id",
+           "friction", "integer", "is_number", "lane_key", "lane_speeds", "lanes", "name_rule",
+           "non_json_path", "num", "number_map"]
 
 NAME_RE = re.compile(r"^[a-z0-9_]+$")
 MAX_SEED = 2**31 - 1
@@ -56,6 +57,45 @@ def sumo_step(v: Any) -> str | None:
         return what
     ticks = v / SUMO_TICK_S
     return None if abs(ticks - round(ticks)) < 1e-6 else what
+
+
+MAX_FRICTION = 2.0  # racing slicks reach ~1.7; beyond 2 a value is a typo
+
+
+def friction(v: Any) -> str | None:
+    """A tyre-road friction coefficient mu in (0, 2]."""
+    if is_number(v) and 0.0 < v <= MAX_FRICTION:
+        return None
+    return f"a friction coefficient in (0, {MAX_FRICTION:g}] (1.0 dry asphalt, ~0.6 wet)"
+
+
+def edge_id(v: Any) -> str | None:
+    return None if isinstance(v, str) and v else "an edge id (a non-empty string)"
+
+
+def lane_speeds(v: Any) -> str | None:
+    """None, or a non-empty table lane index -> speed [m/s] > 0; TOML keys are strings,
+    so an index may be written ``2`` (a bare key) or ``"2"``."""
+    what = ("null or a non-empty table of lane index -> speed in m/s > 0 "
+            "(e.g. { 2 = 20.0 })")
+    if v is None:
+        return None
+    if not isinstance(v, Mapping) or not v:
+        return what
+    for key, speed in v.items():
+        index = lane_key(key)
+        if index is None or not is_number(speed) or speed <= 0:
+            return what
+    return None
+
+
+def lane_key(key: Any) -> int | None:
+    """A lane index from a table key (an int >= 0, or its decimal string); else None."""
+    if isinstance(key, int) and not isinstance(key, bool):
+        return key if key >= 0 else None
+    if isinstance(key, str) and key.isdigit() and key.isascii():
+        return int(key)
+    return None
 
 
 def integer(lo: int = 0, hi: int | None = None) -> Rule:

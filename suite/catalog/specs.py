@@ -1,5 +1,6 @@
 """The resolved, validated values a catalog yields: the specs of one scenario run
-(:class:`EgoSpec`, :class:`StalledSpec`, :class:`TrafficSpec`, :class:`ControllerSpec`),
+(:class:`EgoSpec`, :class:`StalledSpec`, :class:`TrafficSpec`, :class:`RampTrafficSpec`,
+:class:`ControllerSpec`),
 the :class:`Scenario` itself and the :class:`Catalog` of them.
 
 Each spec checks its own fields on construction (``_RULES``) and raises
@@ -21,7 +22,8 @@ from suite.catalog.errors import SpecError
 from suite.catalog.frozen import FrozenMap, thaw, thaw_map
 from suite.catalog.rules import Rule
 
-__all__ = ["Catalog", "ControllerSpec", "EgoSpec", "Scenario", "StalledSpec", "TrafficSpec"]
+__all__ = ["Catalog", "ControllerSpec", "EgoSpec", "RampTrafficSpec", "Scenario", "StalledSpec",
+           "TrafficSpec"]
 
 
 @dataclass(frozen=True)
@@ -72,18 +74,23 @@ class StalledSpec:
 @dataclass(frozen=True)
 class TrafficSpec:
     """Background traffic. ``lanes`` None = every lane admitting passenger cars;
-    ``speed_mps`` None = the lane speed limit; ``speed_factor_dev`` = SUMO speedDev."""
+    ``speed_mps`` None = the lane speed limit; ``speed_factor_dev`` = SUMO speedDev;
+    ``lane_speeds_mps`` (lane index of the first route edge -> speed [m/s]): the traffic
+    of those lanes drives at most that fast and keeps its lane (None: no lane has its own
+    speed). Its keys are kept as canonical decimal strings (``"2"``), as TOML and JSON
+    write them; :meth:`lane_speed_mps` and :meth:`own_speed_lanes` take and give ints."""
 
     vehicles_per_hour: float
     seed: int
     speed_mps: float | None = None
     lanes: tuple[int, ...] | None = None
     speed_factor_dev: float = 0.1
+    lane_speeds_mps: Mapping[str, float] | None = None
 
     _RULES: ClassVar[dict[str, Rule]] = {
         "vehicles_per_hour": rules.num(0.0), "seed": rules.integer(0, rules.MAX_SEED),
         "speed_mps": rules.num(0.0, strict=True, optional=True), "lanes": rules.lanes,
-        "speed_factor_dev": rules.num(0.0),
+        "speed_factor_dev": rules.num(0.0), "lane_speeds_mps": rules.lane_speeds,
     }
     _REQUIRED: ClassVar[tuple[str, ...]] = ("vehicles_per_hour",)
 
@@ -92,6 +99,49 @@ class TrafficSpec:
         if self.lanes is not None:
             object.__setattr__(self, "lanes", tuple(self.lanes))
         rules.as_float(self, "vehicles_per_hour", "speed_factor_dev")
+        if self.speed_mps is not None:
+            rules.as_float(self, "speed_mps")
+        if self.lane_speeds_mps is not None:
+            speeds = {rules.lane_key(k): float(v) for k, v in self.lane_speeds_mps.items()}
+            if len(speeds) != len(self.lane_speeds_mps):
+                raise SpecError("lane_speeds_mps", "distinct lane indices",
+                                dict(self.lane_speeds_mps))
+            object.__setattr__(self, "lane_speeds_mps", FrozenMap(
+                (str(lane), speed) for lane, speed in sorted(
+                    (int(lane or 0), speed) for lane, speed in speeds.items())))
+
+    def own_speed_lanes(self) -> tuple[int, ...]:
+        """The lanes with their own traffic speed, ascending."""
+        return tuple(int(k) for k in self.lane_speeds_mps or {})
+
+    def lane_speed_mps(self, lane: int) -> float | None:
+        """The lane's own traffic speed [m/s], None if it has none."""
+        if self.lane_speeds_mps is None:
+            return None
+        speed = self.lane_speeds_mps.get(str(lane))
+        return None if speed is None else float(speed)
+
+
+@dataclass(frozen=True)
+class RampTrafficSpec:
+    """Traffic entering the route from ``edge``, an edge off the route (an on-ramp):
+    a Poisson flow of ``vehicles_per_hour`` that drives from ``edge`` onto the route and
+    along it to its end, plus cars spread over the ramp at t = 0. ``speed_mps``: their
+    speed (departure and maximum) [m/s]; None = the lanes' limits."""
+
+    edge: str
+    vehicles_per_hour: float
+    speed_mps: float | None = None
+
+    _RULES: ClassVar[dict[str, Rule]] = {
+        "edge": rules.edge_id, "vehicles_per_hour": rules.num(0.0),
+        "speed_mps": rules.num(0.0, strict=True, optional=True),
+    }
+    _REQUIRED: ClassVar[tuple[str, ...]] = ("edge", "vehicles_per_hour")
+
+    def __post_init__(self) -> None:
+        rules.check_fields(self)
+        rules.as_float(self, "vehicles_per_hour")
         if self.speed_mps is not None:
             rules.as_float(self, "speed_mps")
 
@@ -145,13 +195,15 @@ class Scenario:
     sweep_values: Mapping[str, Any] = field(default_factory=lambda: FrozenMap())
     record_radius_m: float = 150.0
     timeout_s: float | None = None
+    friction: float = 1.0
+    ramp_traffic: tuple[RampTrafficSpec, ...] = ()
 
     _RULES: ClassVar[dict[str, Rule]] = {
         "name": rules.name_rule, "family": rules.name_rule,
         "duration_s": rules.num(0.0, strict=True), "step_s": rules.sumo_step,
         "seed": rules.integer(0, rules.MAX_SEED), "allow_shoulder": rules.boolean,
         "criteria": rules.number_map, "record_radius_m": rules.num(0.0, strict=True),
-        "timeout_s": rules.num(0.0, strict=True, optional=True),
+        "timeout_s": rules.num(0.0, strict=True, optional=True), "friction": rules.friction,
     }
 
     def __post_init__(self) -> None:
@@ -167,6 +219,10 @@ class Scenario:
         stalled = tuple(self.stalled)
         if any(not isinstance(s, StalledSpec) for s in stalled):
             raise SpecError("stalled", "a sequence of StalledSpec", self.stalled)
+        ramps = tuple(self.ramp_traffic)
+        if any(not isinstance(r, RampTrafficSpec) for r in ramps):
+            raise SpecError("ramp_traffic", "a sequence of RampTrafficSpec", self.ramp_traffic)
+        object.__setattr__(self, "ramp_traffic", ramps)
         route = tuple(self.route)
         if not route or any(not isinstance(e, str) for e in route):
             raise SpecError("route", "a non-empty sequence of edge ids", self.route)
@@ -177,7 +233,7 @@ class Scenario:
         object.__setattr__(self, "criteria", FrozenMap(
             {k: float(v) for k, v in self.criteria.items()}))
         object.__setattr__(self, "sweep_values", FrozenMap(self.sweep_values))
-        rules.as_float(self, "duration_s", "step_s", "record_radius_m")
+        rules.as_float(self, "duration_s", "step_s", "record_radius_m", "friction")
         if self.timeout_s is not None:
             rules.as_float(self, "timeout_s")
 
@@ -207,6 +263,8 @@ class Scenario:
             "sweep_values": thaw(self.sweep_values),
             "record_radius_m": self.record_radius_m,
             "timeout_s": self.timeout_s,
+            "friction": self.friction,
+            "ramp_traffic": [_plain_dataclass(r) for r in self.ramp_traffic],
         }
 
 

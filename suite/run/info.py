@@ -30,4 +30,4 @@ def scenario_info(scenario: Scenario, catalog_name: str, vehicle: VehicleParams,
         controller_params=dict(controller_params or {}),
         criteria={k: float(v) for k, v in scenario.criteria.items()},
         scenario_spec=scenario.as_dict(), record_radius_m=float(scenario.record_radius_m),
-        hwyeval_version=__version__)
+        hwyeval_version=__version__, friction=float(scenario.friction))

@@ -211,7 +211,7 @@ def run_scenario(scenario: Scenario, out_dir: Path, options: RunOptions | None =
     options = options or RunOptions()
     run_dir = Path(out_dir) / scenario.name
     _clean(run_dir)
-    vehicle = VehicleParams()
+    vehicle = VehicleParams(friction_coeff=scenario.friction)  # the road's mu
     wall0 = time.perf_counter()
     end, error, reason = "ok", None, ""
     run: _Run | None = None

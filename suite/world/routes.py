@@ -5,13 +5,19 @@ spread over the route at t = 0 with exponential headways (mean speed/flow, so tr
 surrounds the ego from the first step) plus Poisson flows entering at the route's start,
 on every lane of the first route edge that admits passenger cars (or the lanes the
 catalog names); a pre-placed car follows its lane across the route's index shifts and
-is only placed where that lane continues far enough for it. All randomness comes from
-one generator seeded by the scenario.
+is only placed where that lane continues far enough for it. A lane with its own traffic
+speed (``traffic.lane_speeds_mps``) gets its own vehicle type: that speed as maximum,
+no speed-gain, keep-right or cooperative lane changes (it keeps its lane, e.g. slower
+traffic in the passing lane; strategic changes where its lane ends remain). On-ramp
+traffic (``ramp_traffic``): a Poisson flow from the ramp edge along
+:func:`suite.catalog.traffic_checks.ramp_route` onto the route, plus cars spread over the
+ramp's own edges at t = 0. All randomness comes from one generator seeded by the
+scenario (main traffic first, then the ramps, so adding a ramp leaves the main traffic
+as it was).
 """
 
 from __future__ import annotations
 
-import math
 import xml.sax.saxutils as su
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,12 +25,14 @@ from pathlib import Path
 import numpy as np
 
 from controllers.plant.vehicle_model import VehicleParams
-from suite.catalog import Scenario
+from suite.catalog import RampTrafficSpec, Scenario
+from suite.catalog.traffic_checks import ramp_route
 from suite.road.lane_graph import RouteLaneGraph
 from suite.road.network import RoadNetwork
 
 EGO_ID = "ego"
 STALLED_PREFIX = "stalled"
+RAMP_PREFIX = "ramp"
 INSERT_CLEARANCE_M = 30.0  # no pre-placed traffic this close to the ego or a stalled car
 # A pre-placed car needs this much of its lane ahead: 2 s at its speed plus a stop at
 # 4 m/s² (SUMO refuses a departure that cannot stop before the lane ends).
@@ -62,6 +70,8 @@ class RouteFile:
         lines.append(self._ego())
         if sc.traffic is not None and sc.traffic.vehicles_per_hour > 0:
             lines.extend(self._traffic(rng))
+        for i, ramp in enumerate(sc.ramp_traffic):
+            lines.extend(self._ramp(rng, i, ramp))
         lines.append("</routes>")
         return "\n".join(lines) + "\n"
 
@@ -82,7 +92,34 @@ class RouteFile:
             "  </vType>",
             f'  <vType id="bg" vClass="passenger" length="4.5" width="1.8" speedDev="{_fmt(dev)}" '
             f'lcStrategic="1.0" lcCooperative="1.0" lcSpeedGain="1.0" color="200,200,200"/>',
+            *self._lane_vtypes(dev),
         ]
+
+    def _lane_vtypes(self, dev: float) -> list[str]:
+        """A type per lane with its own traffic speed, and per on-ramp with a speed."""
+        tr = self.scenario.traffic
+        out = []
+        for lane in self.traffic_lanes() if tr is not None else []:
+            speed = tr.lane_speed_mps(lane) if tr is not None else None
+            if speed is not None:
+                out.append(
+                    f'  <vType id="bg_l{lane}" vClass="passenger" length="4.5" width="1.8" '
+                    f'speedDev="{_fmt(dev)}" maxSpeed="{_fmt(speed)}" lcStrategic="1.0" '
+                    'lcCooperative="0" lcSpeedGain="0" lcKeepRight="0" color="160,120,220"/>')
+        for i, ramp in enumerate(self.scenario.ramp_traffic):
+            if ramp.speed_mps is not None:
+                out.append(
+                    f'  <vType id="bg_{RAMP_PREFIX}{i}" vClass="passenger" length="4.5" '
+                    f'width="1.8" speedDev="{_fmt(dev)}" maxSpeed="{_fmt(ramp.speed_mps)}" '
+                    'lcStrategic="1.0" lcCooperative="1.0" lcSpeedGain="1.0" '
+                    'color="220,180,80"/>')
+        return out
+
+    def _lane_type(self, lane: int) -> tuple[str, float | None]:
+        """(vehicle type, own speed [m/s] or None) of the traffic of a first-edge lane."""
+        tr = self.scenario.traffic
+        speed = tr.lane_speed_mps(lane) if tr is not None else None
+        return ("bg" if speed is None else f"bg_l{lane}"), speed
 
     def _stalled(self, i: int) -> list[str]:
         st = self.scenario.stalled[i]
@@ -147,10 +184,11 @@ class RouteFile:
             if per_lane_vph <= 0:
                 continue
             rate = per_lane_vph / 3600.0
+            vtype, _ = self._lane_type(lane)
             lines.append(
-                f'  <flow id="flow_l{lane}" type="bg" route="main" begin="0" end="{_fmt(end_s)}" '
-                f'period="exp({rate:.6f})" departLane="{lane}" departSpeed="desired" '
-                f'departPos="base"/>')
+                f'  <flow id="flow_l{lane}" type="{vtype}" route="main" begin="0" '
+                f'end="{_fmt(end_s)}" period="exp({rate:.6f})" departLane="{lane}" '
+                f'departSpeed="desired" departPos="base"/>')
         return lines
 
     def _pre_placed(self, rng: np.random.Generator, lanes: list[int], per_lane_vph: float,
@@ -160,17 +198,20 @@ class RouteFile:
         lanes are added or dropped), and only where that lane continues far enough for a
         driver at ``speed`` to move over before it ends (SUMO refuses such departures)."""
         sc, net = self.scenario, self.network
-        mean_gap_m = speed / (per_lane_vph / 3600.0) if per_lane_vph > 0 else math.inf
-        if not math.isfinite(mean_gap_m):
+        if per_lane_vph <= 0:
             return []
         graph = RouteLaneGraph(net, self.route)
         starts = net.route_edge_starts_m(self.route)
         route_len = net.route_length_m(self.route)
         blocked = [sc.ego.pos_m] + [st.pos_m for st in sc.stalled]
-        needed = speed * PRE_PLACE_HEADWAY_S + speed**2 / (2.0 * PRE_PLACE_DECEL_MPS2)
         lines: list[str] = []
         n = 0
         for lane in lanes:
+            vtype, own = self._lane_type(lane)
+            lane_speed = speed if own is None else min(own, speed)
+            mean_gap_m = lane_speed / (per_lane_vph / 3600.0)  # density k = q / v
+            needed = (lane_speed * PRE_PLACE_HEADWAY_S
+                      + lane_speed**2 / (2.0 * PRE_PLACE_DECEL_MPS2))
             index_on = {st.k: st.lane.index for st in graph.chain(0, lane)}
             pos = float(rng.exponential(mean_gap_m)) + 10.0
             while pos < route_len - 20.0:
@@ -185,9 +226,52 @@ class RouteFile:
                         vid = f"pre{n}"
                         lines.append(f'  <route id="r_{vid}" edges="{" ".join(self.route[k:])}"/>')
                         lines.append(
-                            f'  <vehicle id="{vid}" type="bg" route="r_{vid}" depart="0" '
+                            f'  <vehicle id="{vid}" type="{vtype}" route="r_{vid}" depart="0" '
                             f'departLane="{i}" departPos="{_fmt(max(pos_on_edge, 5.0))}" '
-                            f'departSpeed="{_fmt(speed)}"/>')
+                            f'departSpeed="{_fmt(lane_speed)}"/>')
                         n += 1
                 pos += max(float(rng.exponential(mean_gap_m)), 12.0)
+        return lines
+
+    def ramp_edges(self, ramp: RampTrafficSpec) -> tuple[str, ...]:
+        """The edges a car from ``ramp`` drives: the ramp's own, then the route's."""
+        edges = ramp_route(self.network, ramp.edge, self.route)
+        if edges is None:  # the catalog checks this; a hand-built Scenario may not
+            raise ValueError(f"ramp_traffic edge {ramp.edge!r} does not lead onto the route")
+        return edges
+
+    def _ramp(self, rng: np.random.Generator, i: int, ramp: RampTrafficSpec) -> list[str]:
+        """On-ramp ``i``: its route, cars spread over its own edges at t = 0 (exponential
+        headways, density q / v per lane) and a Poisson flow entering at its edge."""
+        if ramp.vehicles_per_hour <= 0:
+            return []
+        net = self.network
+        edges = self.ramp_edges(ramp)
+        own = [e for e in edges if e not in self.route]
+        speed = ramp.speed_mps if ramp.speed_mps is not None else max(
+            li.speed_mps for li in net.lane_info(tuple(own)))
+        vtype = f"bg_{RAMP_PREFIX}{i}" if ramp.speed_mps is not None else "bg"
+        rid = f"r_{RAMP_PREFIX}{i}"
+        lines = [f'  <route id="{rid}" edges="{" ".join(edges)}"/>']
+        for k, edge in enumerate(own):
+            lanes = [li.index for li in net.lane_info((edge,)) if li.allows_passenger]
+            mean_gap_m = speed * len(lanes) / (ramp.vehicles_per_hour / 3600.0)
+            for lane in lanes:
+                pos = float(rng.exponential(mean_gap_m)) + 10.0
+                n = 0
+                while pos < net.edge_length_m(edge) - 10.0:
+                    vid = f"{RAMP_PREFIX}{i}_pre{k}_{lane}_{n}"
+                    lines.append(f'  <route id="r_{vid}" edges="{" ".join(edges[k:])}"/>')
+                    lines.append(
+                        f'  <vehicle id="{vid}" type="{vtype}" route="r_{vid}" depart="0" '
+                        f'departLane="{lane}" departPos="{_fmt(pos)}" '
+                        f'departSpeed="{_fmt(speed)}"/>')
+                    n += 1
+                    pos += max(float(rng.exponential(mean_gap_m)), 12.0)
+        rate = ramp.vehicles_per_hour / 3600.0
+        end_s = float(self.scenario.duration_s) + 1.0
+        lines.append(
+            f'  <flow id="{RAMP_PREFIX}{i}" type="{vtype}" route="{rid}" begin="0" '
+            f'end="{_fmt(end_s)}" period="exp({rate:.6f})" departLane="best" '
+            f'departSpeed="desired" departPos="base"/>')
         return lines
