@@ -16,7 +16,9 @@ Where a failure happened (``Failure.step``, a trace row, and ``Failure.t_s``):
 * aggregates (rms_lat_dev_m, progress_ratio) have no step (None).
 
 Overrides: the catalog's ``criteria`` table (``info.criteria``) maps field names of
-:class:`Criteria` to numbers; ``null`` disables a criterion; unknown names raise.
+:class:`Criteria` to numbers; the string ``"off"`` (:data:`OFF`; TOML has no null) or
+``None`` disables a criterion; unknown names raise. :func:`override_problem` is the
+one check both the catalog loader and :meth:`Criteria.from_overrides` apply.
 """
 
 from __future__ import annotations
@@ -58,6 +60,29 @@ CRITERIA_METRICS: dict[str, tuple[str, str]] = {
 # Not a Criteria field: a run without trace rows has nothing to judge and fails this.
 STEPS_CRITERION = "min_steps"
 
+# The override value that switches a criterion off (TOML has no null).
+OFF = "off"
+
+
+def override_problem(value: Any) -> str | None:
+    """Why ``value`` is not a valid criterion override (None when it is): a finite
+    number, :data:`OFF` or ``None``."""
+    if value is None or value == OFF:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) \
+            or not math.isfinite(float(value)):
+        return f'a finite number or "{OFF}"'
+    return None
+
+
+def override_limit(value: Any) -> float | None:
+    """The limit an accepted override sets: None (off) for :data:`OFF`/None, else the
+    number as float. Raises ValueError for a value :func:`override_problem` refuses."""
+    problem = override_problem(value)
+    if problem is not None:
+        raise ValueError(f"expected {problem}, got {value!r}")
+    return None if value is None or value == OFF else float(value)
+
 
 @dataclass(frozen=True)
 class Criteria:
@@ -95,7 +120,7 @@ class Criteria:
         """Defaults (or ``base``) with ``overrides`` applied; validates names and values.
 
         Raises ValueError naming an unknown key (and listing the valid ones) or a value
-        that is neither a finite number nor null.
+        that is neither a finite number nor ``"off"``/None (:func:`override_problem`).
         """
         base = base if base is not None else cls()
         if not overrides:
@@ -108,14 +133,10 @@ class Criteria:
         for key, value in overrides.items():
             if key not in valid:
                 raise ValueError(f"unknown criterion {key!r}; valid criteria: {', '.join(valid)}")
-            if value is None:
-                changes[key] = None
-                continue
-            if isinstance(value, bool) or not isinstance(value, int | float) \
-                    or not math.isfinite(float(value)):
-                raise ValueError(f"criterion {key!r}: expected a finite number or null, "
-                                 f"got {value!r}")
-            changes[key] = float(value)
+            problem = override_problem(value)
+            if problem is not None:
+                raise ValueError(f"criterion {key!r}: expected {problem}, got {value!r}")
+            changes[key] = override_limit(value)
         return replace(base, **changes)
 
     def as_dict(self) -> dict[str, float | None]:
