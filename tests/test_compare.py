@@ -11,7 +11,9 @@ import pandas as pd
 import pytest
 import synthetic_runs as sr
 
-from reports.compare import MetricTolerance, Tolerances, compare_runs
+from reports.compare import MetricTolerance, NothingToCompare, Tolerances, compare_runs
+from reports.manifest import Manifest, write_manifest
+from reports.provenance import Provenance
 from reports.record import RUN_JSON, Trace
 
 
@@ -80,7 +82,7 @@ def test_metric_change_within_tolerance(base: Path, tmp_path: Path) -> None:
     toml = tmp_path / "tol.toml"
     toml.write_text('[metrics.rms_lat_dev_m]\nabs = 0.01\nrel = 0.01\n')
     tol = Tolerances.from_toml(toml)
-    assert tol.metrics["rms_lat_dev_m"] == MetricTolerance(0.01, 0.01, "higher_is_worse")
+    assert tol.metrics["rms_lat_dev_m"] == MetricTolerance(0.01, 0.01)
     assert compare_runs(base, new, tmp_path / "cmp2", tol).exit_code == 1
 
 
@@ -98,21 +100,120 @@ def test_new_failure_and_fixed(base: Path, tmp_path: Path) -> None:
     assert back.exit_code == 0
 
 
-def test_timing_ratio_regression(base: Path, tmp_path: Path) -> None:
+def test_timing_warns_and_gates_only_with_the_timing_gate(base: Path, tmp_path: Path) -> None:
     slow = sr.make_catalog(tmp_path / "slow", speedup=2.0)
     result = compare_runs(base, slow, tmp_path / "cmp")
-    timing = result.of_kind("timing_regression")
-    assert timing and result.exit_code == 1
+    timing = result.of_kind("timing_slower")
+    # every controller time doubled: warnings, ratio 2, no behaviour finding, exit 0
+    assert timing and result.exit_code == 0 and not result.regressions
+    assert all(r.warning and not r.regression for r in timing)
     assert {r.metric for r in timing} >= {"step_ms_p99", "step_ms_p50"}
     assert all(r.ratio == pytest.approx(2.0, rel=0.05) for r in timing
                if r.metric.startswith("step_"))
     assert not result.of_kind("metric_regression", "new_failure")
+    lines = {t.metric: t for t in result.timing}
+    assert lines["step_ms_p99"].median_ratio == pytest.approx(2.0, rel=0.05)
+    assert lines["step_ms_p99"].slower and not lines["sumo_ms_p50"].slower
+    assert "OK: no behaviour regression" in result.summary_text()
+    # the timing gate: the catalog-wide median beyond its ratio fails
+    gated = compare_runs(base, slow, tmp_path / "cmp_gate", Tolerances(timing_gate=True))
+    assert gated.exit_code == 1 and not gated.regressions
+    assert {t.metric for t in gated.timing_failures} >= {"step_ms_p50", "step_ms_p99"}
     toml = tmp_path / "loose.toml"
-    toml.write_text("[timing]\nstep_ms_p50 = 3.0\nstep_ms_p99 = 3.0\nouter_ms_p99 = 3.0\n"
-                    "inner_ms_p99 = 3.0\n")
+    toml.write_text("timing_gate = true\n[timing]\nstep_ms_p50 = 3.0\nstep_ms_p99 = 3.0\n"
+                    "outer_ms_p99 = 3.0\ninner_ms_p99 = 3.0\n")
     assert compare_runs(base, slow, tmp_path / "cmp2", Tolerances.from_toml(toml)).exit_code == 0
-    # and a speed-up is an improvement, not a regression
-    assert compare_runs(slow, base, tmp_path / "cmp3").exit_code == 0
+    # and a speed-up is an improvement, never a finding that fails
+    faster = compare_runs(slow, base, tmp_path / "cmp3", Tolerances(timing_gate=True))
+    assert faster.exit_code == 0 and faster.of_kind("timing_faster")
+
+
+def test_one_noisy_run_does_not_fail_the_timing_gate(base: Path, tmp_path: Path) -> None:
+    new = _copy(base, tmp_path)
+    record = dict(sr.catalog_records())["cruise_straight__ctrl_a"]
+    sr.fill_timing(record.trace, 0, scale=5.0)
+    sr.write_judged(record, new / "cruise_straight__ctrl_a")
+    result = compare_runs(base, new, tmp_path / "cmp", Tolerances(timing_gate=True))
+    assert [r.key for r in result.of_kind("timing_slower")][:1] == ["cruise_straight [ctrl_a]"]
+    assert result.exit_code == 0  # the median run did not slow down
+
+
+def test_deadline_misses_are_timing_not_behaviour(base: Path, tmp_path: Path) -> None:
+    new = _copy(base, tmp_path)
+    record = dict(sr.catalog_records())["cruise_straight__ctrl_a"]
+    record.trace.timing.controller_s[:40] = 0.2  # 40 steps over the 50 ms period
+    sr.write_judged(record, new / "cruise_straight__ctrl_a")
+    verdict = sr.judge(record).verdict
+    assert verdict is not None
+    metric = verdict.metric("deadline_misses")
+    assert metric is not None and metric.kind == "timing"
+    result = compare_runs(base, new, tmp_path / "cmp")
+    (row,) = [r for r in result.rows if r.metric == "deadline_misses"]
+    assert row.kind == "timing_slower" and row.warning and not row.regression
+    assert (row.base, row.new) == (0.0, 40.0)
+    assert result.exit_code == 0
+    assert compare_runs(base, new, tmp_path / "cmp2", Tolerances(timing_gate=True)).exit_code == 1
+
+
+def test_an_empty_baseline_or_nothing_matched_is_nothing_to_compare(base: Path,
+                                                                   tmp_path: Path) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(NothingToCompare, match="holds no run"):
+        compare_runs(empty, base, tmp_path / "cmp")
+    with pytest.raises(NothingToCompare, match="holds no run"):
+        compare_runs(base, empty, tmp_path / "cmp")
+    other = tmp_path / "other"
+    sr.write_run(other / "elsewhere__ctrl_a", sr.straight_trace(3.0),
+                 info=sr.base_info("elsewhere", "ctrl_a"))
+    sr.write_run(other / "elsewhere__ctrl_b", sr.straight_trace(3.0),
+                 info=sr.base_info("elsewhere", "ctrl_b"))
+    with pytest.raises(NothingToCompare, match="matches"):
+        compare_runs(base, other, tmp_path / "cmp")
+
+
+def _manifest(out: Path, **changes: object) -> None:
+    prov = Provenance(git_sha="a" * 40, git_dirty=False, hwyeval_version="0.1.0",
+                      sumo_version="1.28.0", numba_version="0.60", rerun_version="0.41.0",
+                      numpy_version="2.0", python_version="3.11.2", host="nightly-1",
+                      cpu_model="Xeon", cpu_count=2, load_start=0.1, load_end=0.2)
+    import dataclasses
+    prov = dataclasses.replace(prov, **changes)  # type: ignore[arg-type]
+    write_manifest(out, Manifest(catalog="cat.toml", catalog_name="cat", scenarios=(),
+                                 started="2025-01-01T00:00:00+00:00", jobs=2, executor="local",
+                                 provenance=prov))
+
+
+def test_provenance_differences_and_load_are_reported(base: Path, tmp_path: Path) -> None:
+    new = _copy(base, tmp_path)
+    _manifest(base)
+    _manifest(new, git_sha="b" * 40, git_dirty=True, host="laptop", load_end=1.9)
+    result = compare_runs(base, new, tmp_path / "cmp")
+    assert {d.field for d in result.provenance_differences} == {"git_sha", "git_dirty", "host"}
+    assert result.exit_code == 0  # provenance alone never fails a comparison
+    text = result.summary_text()
+    assert "provenance differs" in text and "host: nightly-1 → laptop" in text
+    assert "busy machine" in result.load and "1.90" in result.load
+    html = (tmp_path / "cmp" / "compare.html").read_text()
+    assert "Provenance" in html and "laptop" in html
+
+
+def test_terminal_shows_base_and_new_with_units(base: Path, tmp_path: Path) -> None:
+    new = _copy(base, tmp_path)
+    _rerun(new, "lane_change_left__ctrl_a", _scale_lat_dev(1.5))
+    result = compare_runs(base, new, tmp_path / "cmp")
+    (row,) = [r for r in result.regressions if r.metric == "rms_lat_dev_m"]
+    line = next(li for li in result.summary_text().splitlines() if "rms_lat_dev_m" in li)
+    assert f"{row.base:.4g} m → {row.new:.4g} m" in line
+    assert row.unit == "m" and row.metric_kind == "tracking"
+    import json
+
+    from reports.compare.render import as_json
+    doc = json.loads(as_json(result))
+    assert doc["exit_code"] == 1
+    regs = {r["metric"]: r for r in doc["regressions"]}
+    assert "rms_lat_dev_m" in regs and regs["rms_lat_dev_m"]["unit"] == "m"
+    assert all(r["metric_kind"] == "tracking" for r in regs.values())
 
 
 def test_missing_and_new_runs(base: Path, tmp_path: Path) -> None:

@@ -1,0 +1,168 @@
+"""``hwyeval compare BASE NEW``: did the new catalog output regress against the base?
+
+Only stored verdicts are read (``run.json``; an unreadable run directory is an
+'error' run) and each side's ``manifest.json`` (provenance, load).
+
+* **Behaviour gates** (exit 1): a run that passed and no longer does, a worse status,
+  a newly failed criterion, a safety/comfort/tracking metric worse beyond its tolerance,
+  a run missing from new. Same code on the same catalog gives the same behaviour: these
+  do not depend on the machine.
+* **Timing warns**: wall-clock metrics (kind ``timing``, ``deadline_misses`` included)
+  are reported as ratios new/base, per run and as the catalog's median, with the load
+  of both sides; with ``--timing-gate`` (``timing_gate = true``) a median ratio beyond
+  its limit, or a deadline-miss count up, fails too. Health metrics warn.
+* **Provenance**: differences in git revision, versions, host and CPU are listed.
+* **Nothing to compare** — no run directory on a side, or no run of new matching one of
+  base — raises :class:`NothingToCompare` (the CLI exits 2): an empty baseline must
+  never pass a night.
+
+Modules: :mod:`~reports.compare.tolerances` (TOML), :mod:`~reports.compare.findings`
+(matching, rows), :mod:`~reports.compare.timing` (catalog-wide ratios, load),
+:mod:`~reports.compare.render` (terminal, JSON, CSV, HTML).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from reports.compare.findings import CompareRow, match_keys, metric_rows, status_rows
+from reports.compare.timing import TimingLine, load_note, timing_lines
+from reports.compare.tolerances import MetricTolerance, Tolerances
+from reports.manifest import Manifest, read_manifest
+from reports.provenance import Difference, differences
+from reports.tables import RunEntry, collect_runs
+
+__all__ = ["CompareResult", "CompareRow", "MetricTolerance", "NothingToCompare",
+           "TimingLine", "Tolerances", "compare_evaluated", "compare_runs"]
+
+
+class NothingToCompare(ValueError):
+    """A side holds no run, or no run matches: the comparison means nothing (exit 2)."""
+
+
+@dataclass
+class CompareResult:
+    """Outcome of :func:`compare_runs`."""
+
+    rows: list[CompareRow]
+    matched: int
+    base_dir: Path
+    new_dir: Path
+    timing: list[TimingLine] = field(default_factory=list)
+    base_manifest: Manifest | None = None
+    new_manifest: Manifest | None = None
+    provenance_differences: list[Difference] = field(default_factory=list)
+    load: str = ""
+    timing_gate: bool = False
+    csv_path: Path | None = None
+    html_path: Path | None = None
+
+    def of_kind(self, *kinds: str) -> list[CompareRow]:
+        return [r for r in self.rows if r.kind in kinds]
+
+    @property
+    def regressions(self) -> list[CompareRow]:
+        """Findings that fail the comparison."""
+        return [r for r in self.rows if r.gate]
+
+    @property
+    def warnings(self) -> list[CompareRow]:
+        """Timing and health findings that do not fail it."""
+        return [r for r in self.rows if r.warning]
+
+    @property
+    def timing_failures(self) -> list[TimingLine]:
+        """Catalog-wide timing slowdowns that fail (only with the timing gate)."""
+        return [t for t in self.timing if t.gate]
+
+    @property
+    def new_failures(self) -> list[str]:
+        return [r.key for r in self.of_kind("new_failure")]
+
+    @property
+    def fixed(self) -> list[str]:
+        return [r.key for r in self.of_kind("fixed")]
+
+    @property
+    def missing(self) -> list[str]:
+        return [r.key for r in self.of_kind("missing")]
+
+    @property
+    def added(self) -> list[str]:
+        return [r.key for r in self.of_kind("new")]
+
+    @property
+    def exit_code(self) -> int:
+        """1 on any regression (or gated timing slowdown), else 0."""
+        return 1 if self.regressions or self.timing_failures else 0
+
+    def summary_text(self) -> str:
+        """The terminal report (see :mod:`reports.compare.render`)."""
+        from reports.compare.render import summary_text
+
+        return summary_text(self)
+
+
+def compare_evaluated(base: list[RunEntry], new: list[RunEntry],
+                      tolerances: Tolerances | None = None
+                      ) -> tuple[list[CompareRow], int, list[tuple[RunEntry, RunEntry]]]:
+    """Findings for two lists of runs, the number matched and the matched pairs."""
+    tol = tolerances or Tolerances()
+    base_map, new_map = match_keys(base, new)
+    rows: list[CompareRow] = []
+    pairs: list[tuple[RunEntry, RunEntry]] = []
+    for key in sorted(set(base_map) | set(new_map)):
+        b, n = base_map.get(key), new_map.get(key)
+        if n is None and b is not None:
+            rows.append(CompareRow(key, b.scenario, b.controller, "missing",
+                                   note="in base only", gate=tol.missing_is_regression))
+            continue
+        if b is None and n is not None:
+            rows.append(CompareRow(key, n.scenario, n.controller, "new",
+                                   note=f"in new only ({n.status})"))
+            continue
+        assert b is not None and n is not None
+        pairs.append((b, n))
+        rows.extend(status_rows(key, b, n))
+        if b.status in ("pass", "fail") and n.status in ("pass", "fail"):
+            rows.extend(metric_rows(key, b, n, tol))
+    return rows, len(pairs), pairs
+
+
+def compare_runs(base_dir: str | Path, new_dir: str | Path, out_dir: str | Path | None = None,
+                 tolerances: Tolerances | None = None) -> CompareResult:
+    """Compare two catalog outputs; writes ``compare.csv`` and ``compare.html`` into
+    ``out_dir`` (when given). Raises FileNotFoundError for a missing directory and
+    :class:`NothingToCompare` when a side is empty or nothing matches."""
+    tol = tolerances or Tolerances()
+    base_dir, new_dir = Path(base_dir), Path(new_dir)
+    for d in (base_dir, new_dir):
+        if not d.is_dir():
+            raise FileNotFoundError(f"{d}: not a directory")
+    base, new = collect_runs(base_dir), collect_runs(new_dir)
+    for side, d, runs in (("base", base_dir, base), ("new", new_dir, new)):
+        if not runs:
+            raise NothingToCompare(f"{side} {d} holds no run directory (DIR/<scenario>/"
+                                   "run.json): nothing to compare against")
+    rows, matched, pairs = compare_evaluated(base, new, tol)
+    if matched == 0:
+        raise NothingToCompare(f"no run of {new_dir} matches a run of {base_dir} (by scenario "
+                               "and controller): are these outputs of the same catalog?")
+    bm, nm = read_manifest(base_dir), read_manifest(new_dir)
+    bp = bm.provenance if bm is not None else None
+    np_ = nm.provenance if nm is not None else None
+    result = CompareResult(
+        rows, matched, base_dir, new_dir, timing=timing_lines(pairs, tol), base_manifest=bm,
+        new_manifest=nm,
+        provenance_differences=differences(bp, np_) if bp is not None and np_ is not None
+        else [],
+        load=load_note(bp, np_), timing_gate=tol.timing_gate)
+    if out_dir is not None:
+        from reports.compare.render import write_compare_csv, write_compare_html
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        result.csv_path = write_compare_csv(result, out / "compare.csv")
+        result.html_path = write_compare_html(result, out / "compare.html", base, new)
+    return result

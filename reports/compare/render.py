@@ -1,0 +1,292 @@
+"""A comparison for people and machines: terminal lines, JSON, compare.csv, compare.html.
+
+Terminal: a header (both sides with their revision, host and load), the verdict, the
+regressions as ``run  metric  base → new unit``, warnings (timing per metric as the
+catalog's median ratio with its range, then the slowest runs), provenance
+differences, fixed and missing runs. ``--json`` prints :func:`as_json` instead.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import html
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from reports.compare.findings import GOOD_KINDS, CompareRow
+from reports.manifest import Manifest
+from reports.record.codec import to_plain
+from reports.tables import RunEntry
+
+if TYPE_CHECKING:
+    from reports.compare import CompareResult
+
+MAX_LISTED = 12  # rows of one kind listed in the terminal before "... and N more"
+
+
+def num(value: float, unit: str = "") -> str:
+    """4 significant digits with the unit ('–' for NaN, ∞ spelled)."""
+    if math.isnan(value):
+        return "–"
+    if math.isinf(value):
+        text = "∞" if value > 0 else "−∞"
+    else:
+        text = f"{value:.4g}"
+    return f"{text} {unit}" if unit and unit not in ("-", "0/1") else text
+
+
+def _side(label: str, path: Path, manifest: Manifest | None) -> str:
+    if manifest is None:
+        return f"{label} {path} (no manifest.json: provenance unknown)"
+    p = manifest.provenance
+    load = f", load {p.load:.2f}/core" if math.isfinite(p.load) else ""
+    return (f"{label} {path} ({manifest.catalog_name}, {p.short_sha}, hwyeval "
+            f"{p.hwyeval_version or '?'}, {p.host or '?'}{load}, {manifest.started})")
+
+
+def row_line(row: CompareRow) -> str:
+    """``kind  run  metric base → new unit (note)``."""
+    if row.metric and not (math.isnan(row.base) and math.isnan(row.new)):
+        change = f"{row.metric} {num(row.base, row.unit)} → {num(row.new, row.unit)}"
+        if math.isfinite(row.ratio):
+            change += f" (×{row.ratio:.2f})"
+        elif row.note:
+            change += f" ({row.note})"
+        return f"{row.kind:<17} {row.key}: {change}"
+    return f"{row.kind:<17} {row.key}: {row.note}"
+
+
+def _listed(rows: Sequence[CompareRow], indent: str = "  ") -> list[str]:
+    lines = [indent + row_line(r) for r in rows[:MAX_LISTED]]
+    if len(rows) > MAX_LISTED:
+        lines.append(f"{indent}... and {len(rows) - MAX_LISTED} more (compare.csv)")
+    return lines
+
+
+def _timing_block(result: CompareResult) -> list[str]:
+    if not result.timing and not result.of_kind("timing_slower"):
+        return []
+    gate = "fails with --timing-gate" if not result.timing_gate else "gated: --timing-gate"
+    lines = [f"timing (wall clock; warns, {gate}):"]
+    if result.load:
+        lines.append(f"  note: {result.load}: machine noise likely")
+    for t in result.timing:
+        mark = "SLOWER" if t.slower else "ok    "
+        lines.append(f"  {mark} {t.metric:<16} median ×{t.median_ratio:.2f} over {t.runs} "
+                     f"run(s) (×{t.min_ratio:.2f} … ×{t.max_ratio:.2f}; {t.over_limit} beyond "
+                     f"×{t.limit:g})")
+    counts = [r for r in result.of_kind("timing_slower") if not math.isfinite(r.ratio)]
+    slow = sorted((r for r in result.of_kind("timing_slower") if math.isfinite(r.ratio)),
+                  key=lambda r: -r.ratio)
+    lines += _listed(counts)
+    if slow:
+        lines.append(f"  slowest runs ({len(slow)} timing finding(s)):")
+        lines += _listed(slow[:5], "    ")
+    return lines
+
+
+def summary_text(result: CompareResult) -> str:
+    """The terminal report (module doc)."""
+    lines = [_side("base", result.base_dir, result.base_manifest),
+             _side("new ", result.new_dir, result.new_manifest),
+             f"matched {result.matched} run(s): {len(result.regressions)} regression(s), "
+             f"{len(result.warnings)} warning(s), {len(result.fixed)} fixed, "
+             f"{len(result.missing)} missing, {len(result.added)} new"]
+    if result.provenance_differences:
+        lines.append("provenance differs (behaviour should not; timing may):")
+        lines += [f"  {d.field}: {d.base} → {d.new}" for d in result.provenance_differences]
+    if result.regressions:
+        lines.append(f"REGRESSIONS ({len(result.regressions)}):")
+        lines += _listed(result.regressions)
+    lines += _timing_block(result)
+    health = result.of_kind("health_change")
+    if health:
+        lines.append(f"health (warns, {len(health)}):")
+        lines += _listed(health)
+    if result.fixed:
+        lines.append(f"fixed ({len(result.fixed)}):")
+        lines += _listed(result.of_kind("fixed"))
+    if result.added:
+        lines.append(f"new runs ({len(result.added)}): " + ", ".join(result.added[:MAX_LISTED]))
+    if result.timing_failures:
+        verdict = "FAIL: timing slower than allowed (--timing-gate)"
+    elif result.regressions:
+        verdict = "FAIL: behaviour regressed"
+    else:
+        verdict = "OK: no behaviour regression" + (
+            f" ({len(result.warnings)} warning(s) do not gate)" if result.warnings else "")
+    lines.append(f"{verdict} (exit {result.exit_code})")
+    if result.csv_path is not None:
+        lines.append(f"details: {result.csv_path}  {result.html_path}")
+    return "\n".join(lines)
+
+
+def as_json(result: CompareResult) -> str:
+    """Everything of the comparison as one JSON document (numbers NaN/Infinity allowed)."""
+    doc: dict[str, Any] = {
+        "exit_code": result.exit_code, "matched": result.matched,
+        "base_dir": str(result.base_dir), "new_dir": str(result.new_dir),
+        "timing_gate": result.timing_gate,
+        "regressions": [_row_plain(r) for r in result.regressions],
+        "warnings": [_row_plain(r) for r in result.warnings],
+        "timing": to_plain(result.timing),
+        "load_note": result.load,
+        "provenance_differences": to_plain(result.provenance_differences),
+        "base_manifest": to_plain(result.base_manifest),
+        "new_manifest": to_plain(result.new_manifest),
+        "rows": [_row_plain(r) for r in result.rows],
+    }
+    return json.dumps(doc, indent=1, allow_nan=True)
+
+
+def _row_plain(row: CompareRow) -> dict[str, Any]:
+    plain: dict[str, Any] = to_plain(row)
+    plain["regression"] = row.regression
+    plain["warning"] = row.warning
+    return plain
+
+
+CSV_COLUMNS = ("key", "scenario", "controller", "kind", "regression", "warning", "metric",
+               "unit", "metric_kind", "base", "new", "delta", "ratio", "limit", "note")
+
+
+def _csv_num(value: float) -> str:
+    if math.isnan(value):
+        return ""
+    return repr(float(value)) if math.isfinite(value) else ("inf" if value > 0 else "-inf")
+
+
+def write_compare_csv(result: CompareResult, path: Path) -> Path:
+    """compare.csv: one row per finding (columns :data:`CSV_COLUMNS`)."""
+    with open(path, "w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(CSV_COLUMNS)
+        for r in result.rows:
+            writer.writerow([r.key, r.scenario, r.controller, r.kind, int(r.regression),
+                             int(r.warning), r.metric, r.unit, r.metric_kind, _csv_num(r.base),
+                             _csv_num(r.new), _csv_num(r.delta), _csv_num(r.ratio),
+                             _csv_num(r.limit), r.note])
+    return path
+
+
+_CSS = """
+body{font:14px/1.45 system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0;
+background:#f1f5f9;color:#0f172a}
+header{padding:14px 24px;color:#fff}header.bad{background:#b91c1c}header.ok{background:#15803d}
+header h1{margin:0 0 4px;font-size:19px}main{padding:8px 24px 40px;max-width:1400px}
+table{border-collapse:collapse;background:#fff;margin:6px 0 14px}
+th,td{border:1px solid #e2e8f0;padding:3px 8px;font-size:13px;text-align:left}
+th{background:#f8fafc}td.num{text-align:right;font-variant-numeric:tabular-nums}
+tr.reg td{background:#fef2f2}tr.warn td{background:#fffbeb}tr.good td{background:#f0fdf4}
+h2{font-size:16px;margin:22px 0 6px}.none{color:#94a3b8;font-style:italic}
+"""
+
+
+def _table(rows: Sequence[CompareRow], title: str) -> str:
+    esc = html.escape
+    if not rows:
+        return f"<h2>{esc(title)}</h2><p class=\"none\">none</p>"
+    head = ("<tr><th>run</th><th>kind</th><th>metric</th><th>base</th><th>new</th>"
+            "<th>Δ</th><th>ratio new/base</th><th>limit</th><th>note</th></tr>")
+    body = []
+    for r in rows:
+        cls = "reg" if r.regression else "warn" if r.warning else (
+            "good" if r.kind in GOOD_KINDS else "")
+        ratio = f"×{r.ratio:.3g}" if math.isfinite(r.ratio) else "–"
+        limit_unit = "" if math.isfinite(r.ratio) else r.unit
+        body.append(f'<tr class="{cls}"><td>{esc(r.key)}</td><td>{esc(r.kind)}</td>'
+                    f"<td>{esc(r.metric)}</td><td class=\"num\">{esc(num(r.base, r.unit))}</td>"
+                    f"<td class=\"num\">{esc(num(r.new, r.unit))}</td>"
+                    f"<td class=\"num\">{esc(num(r.delta, r.unit))}</td>"
+                    f"<td class=\"num\">{ratio}</td>"
+                    f"<td class=\"num\">{esc(num(r.limit, limit_unit))}</td>"
+                    f"<td>{esc(r.note)}</td></tr>")
+    return f"<h2>{esc(title)} ({len(rows)})</h2><table>{head}{''.join(body)}</table>"
+
+
+def _timing_table(result: CompareResult) -> str:
+    esc = html.escape
+    if not result.timing:
+        return ""
+    rows = "".join(
+        f"<tr class=\"{'warn' if t.slower else ''}\"><td>{esc(t.metric)} [{esc(t.unit)}]</td>"
+        f"<td class=\"num\">×{t.median_ratio:.3g}</td><td class=\"num\">×{t.min_ratio:.3g} … "
+        f"×{t.max_ratio:.3g}</td><td class=\"num\">{t.over_limit} / {t.runs}</td>"
+        f"<td class=\"num\">×{t.limit:g}</td></tr>" for t in result.timing)
+    note = f"<p>{esc(result.load)}: machine noise likely</p>" if result.load else ""
+    return ("<h2>Timing, catalog-wide (ratio new/base; &gt; 1 is slower)</h2>" + note +
+            "<table><tr><th>metric</th><th>median ratio</th><th>range</th>"
+            f"<th>runs beyond limit</th><th>limit</th></tr>{rows}</table>")
+
+
+def _status_counts(runs: Sequence[RunEntry]) -> dict[str, dict[str, int]]:
+    out: dict[str, dict[str, int]] = {}
+    for r in runs:
+        out.setdefault(r.controller, {}).setdefault(r.status, 0)
+        out[r.controller][r.status] += 1
+    return out
+
+
+def _provenance_table(result: CompareResult) -> str:
+    esc = html.escape
+    sides = [(m.provenance if m is not None else None) for m in (result.base_manifest,
+                                                                  result.new_manifest)]
+    if sides[0] is None and sides[1] is None:
+        return "<h2>Provenance</h2><p class=\"none\">no manifest.json on either side</p>"
+    changed = {d.field for d in result.provenance_differences}
+    fields = ("short_sha", "hwyeval_version", "sumo_version", "numba_version", "rerun_version",
+              "python_version", "host", "cpu_model", "cpu_count", "load_start", "load_end",
+              "plugins")
+    rows = []
+    for name in fields:
+        cells = [esc(str(getattr(p, name))) if p is not None else "–" for p in sides]
+        bad = name in changed or (name == "short_sha" and "git_sha" in changed)
+        rows.append(f"<tr class=\"{'warn' if bad else ''}\"><td>{esc(name)}</td>"
+                    f"<td>{cells[0]}</td><td>{cells[1]}</td></tr>")
+    return ("<h2>Provenance</h2><table><tr><th></th><th>base</th><th>new</th></tr>"
+            + "".join(rows) + "</table>")
+
+
+def write_compare_html(result: CompareResult, path: Path, base: Sequence[RunEntry] = (),
+                       new: Sequence[RunEntry] = ()) -> Path:
+    """compare.html: one self-contained page (inline CSS, no scripts, no network)."""
+    esc = html.escape
+    bad = result.exit_code != 0
+    verdict = (f"REGRESSION: {len(result.regressions) + len(result.timing_failures)} "
+               "finding(s)" if bad else "no regression")
+    counts_b, counts_n = _status_counts(base), _status_counts(new)
+    ctrl_rows = []
+    for ctrl in sorted(set(counts_b) | set(counts_n)):
+        cells = [" / ".join(f"{c.get(s, 0)} {s}" for s in ("pass", "fail", "error", "timeout"))
+                 for c in (counts_b.get(ctrl, {}), counts_n.get(ctrl, {}))]
+        ctrl_rows.append(f"<tr><td>{esc(ctrl)}</td><td>{esc(cells[0])}</td>"
+                         f"<td>{esc(cells[1])}</td></tr>")
+    now = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    parts = [
+        '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
+        '<link rel="icon" href="data:,">'
+        f"<title>hwyeval compare</title><style>{_CSS}</style></head><body>",
+        f'<header class="{"bad" if bad else "ok"}"><h1>hwyeval compare — {esc(verdict)}</h1>'
+        f"<div>base <code>{esc(str(result.base_dir))}</code> · new "
+        f"<code>{esc(str(result.new_dir))}</code> · {result.matched} matched · "
+        f"{len(result.new_failures)} new failures · {len(result.fixed)} fixed · "
+        f"{len(result.missing)} missing · {len(result.added)} new · "
+        f"{len(result.warnings)} warnings · generated {esc(now)}</div></header><main>",
+        _table(result.regressions, "Regressions"),
+        _timing_table(result),
+        _table(result.warnings, "Warnings (timing, health)"),
+        _provenance_table(result),
+        "<h2>Status per controller</h2><table><tr><th>controller</th><th>base</th><th>new</th>"
+        f"</tr>{''.join(ctrl_rows)}</table>",
+        _table(result.of_kind("fixed"), "Fixed"),
+        _table(result.of_kind("missing", "new"), "Missing / new runs"),
+        _table(result.of_kind("status_change", "metric_nan"), "Other status / metric changes"),
+        _table(result.of_kind("metric_improvement", "timing_faster"), "Improvements"),
+        "</main></body></html>",
+    ]
+    path.write_text("\n".join(parts), encoding="utf-8")
+    return path
