@@ -44,6 +44,20 @@ def ensure_venv(extras: str) -> None:
     stamp.write_text(digest)
 
 
+EXAMPLE_PLUGIN = ROOT / "examples" / "hwyeval_example_controller"
+
+
+def ensure_example_plugin() -> None:
+    """pip install -e the example controller plug-in (its entry point is what the
+    plug-in tests run); skipped when the venv already has it from this checkout."""
+    probe = ("import importlib.metadata as m, sys; d = m.distribution("
+             "'hwyeval-example-controller'); sys.exit(0 if d.read_text('direct_url.json') "
+             f"and {str(EXAMPLE_PLUGIN.as_uri())!r} in d.read_text('direct_url.json') else 1)")
+    if subprocess.run([str(PY), "-c", probe], capture_output=True).returncode == 0:
+        return
+    sh([str(PY), "-m", "pip", "install", "-q", "--no-deps", "-e", str(EXAMPLE_PLUGIN)], cwd=ROOT)
+
+
 def ensure_chromium() -> None:
     if shutil.which("chromium") and shutil.which("chromedriver"):
         return
@@ -71,6 +85,7 @@ def main(argv: list[str]) -> int:
         return 0 if code in (0, 1) else code
     if action == "test":
         ensure_venv("test,baselines,cluster")
+        ensure_example_plugin()
         ensure_chromium()
         # Architecture, lint and types first (seconds), then the tests; all of them run
         # whatever the others say, and any failure fails the command.

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from controllers import registry
 from controllers.plant.vehicle_model import VehicleParams
 from reports.record import (
     ControllerArrays,
@@ -55,12 +56,15 @@ OnDone = Callable[[RunRecord], None]
 
 @dataclass(frozen=True)
 class RunJob:
-    """One scenario to run into ``out_dir/<scenario.name>``."""
+    """One scenario to run into ``out_dir/<scenario.name>``. ``plugins``: the
+    ``--plugin`` modules (with a file's source), imported by the worker before it
+    builds the controller (entry-point plug-ins load themselves)."""
 
     scenario: Scenario
     out_dir: Path
     options: RunOptions = field(default_factory=RunOptions)
     timeout_s: float | None = None
+    plugins: tuple[registry.PluginModule, ...] = ()
 
     @property
     def run_dir(self) -> Path:
@@ -68,7 +72,10 @@ class RunJob:
 
 
 def run_job(job: RunJob) -> RunRecord:
-    """Worker entry point: run the job's scenario (never raises, see ``run_scenario``)."""
+    """Worker entry point: load the job's plug-ins, run its scenario (``run_scenario``
+    never raises; a plug-in that fails to import here raises, and is recorded as the
+    run's error by the caller)."""
+    registry.load_plugin_modules(job.plugins)
     return run_scenario(job.scenario, job.out_dir, job.options)
 
 
@@ -225,7 +232,7 @@ def _ray_task(job: RunJob, net_bytes: bytes) -> bytes:
         net.parent.mkdir()
         net.write_bytes(net_bytes)
         scenario = dataclasses.replace(job.scenario, net_path=net)
-        local = RunJob(scenario, tmp_path / "out", job.options, job.timeout_s)
+        local = RunJob(scenario, tmp_path / "out", job.options, job.timeout_s, job.plugins)
         try:
             run_job(local)
         except Exception:  # noqa: BLE001
