@@ -1,0 +1,143 @@
+"""``hwyeval`` command line (docs/cli.md).
+
+    hwyeval list CATALOG [--filter GLOB] [--plugin MODULE ...]
+    hwyeval run CATALOG --out DIR [--jobs N] [--filter GLOB] [--no-log]
+                [--executor local|ray] [--ray-address ADDR] [--plugin MODULE ...]
+    hwyeval report DIR
+    hwyeval compare BASE NEW [--out DIR] [--tolerances FILE] [--timing-gate] [--json]
+    hwyeval view PATH [--failed] [--web [--port N] [--bind ADDR]]
+    hwyeval bench [--out FILE] [--controller-only]
+    hwyeval controllers [NAME] [--plugin MODULE ...]
+    hwyeval --version
+
+Exit codes: 0 success (``run``: every scenario passed; ``compare``: no regression),
+1 a scenario failed, errored or timed out (``compare``: a behaviour regression, or a
+timing slowdown with ``--timing-gate``), 2 invalid input: nothing was run or
+compared (a bad argument, catalog or plug-in, a missing path, an empty baseline).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from suite.cli.commands import (
+    cmd_bench,
+    cmd_compare,
+    cmd_controllers,
+    cmd_list,
+    cmd_report,
+    cmd_view,
+)
+from suite.cli.common import EXIT_FAIL, EXIT_INPUT, EXIT_OK, UsageError, err, positive_int
+from suite.cli.run import cmd_run
+
+__all__ = ["EXIT_FAIL", "EXIT_INPUT", "EXIT_OK", "UsageError", "build_parser", "main"]
+
+PLUGIN_HELP = ("a controller plug-in: a .py file or an importable module that calls "
+               "controllers.registry.register() (repeatable; entry points load by themselves)")
+
+
+def version_text() -> str:
+    from reports.provenance import git_revision, version_of
+    from suite import __version__
+
+    sha, dirty = git_revision()
+    rev = f", git {sha[:10]}{'+dirty' if dirty else ''}" if sha else ""
+    return (f"hwyeval {__version__}{rev} (SUMO {version_of('eclipse-sumo') or '?'}, "
+            f"rerun-sdk {version_of('rerun-sdk') or '?'}, numba {version_of('numba') or '?'})")
+
+
+class _Version(argparse.Action):
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: object, option_string: str | None = None) -> None:
+        print(version_text())
+        parser.exit()
+
+
+def _add_plugin(s: argparse.ArgumentParser) -> None:
+    s.add_argument("--plugin", action="append", default=[], metavar="MODULE", help=PLUGIN_HELP)
+
+
+def _run_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    s = sub.add_parser("run", help="run a catalog (exit 1 unless every scenario passes)")
+    s.add_argument("catalog")
+    s.add_argument("--out", required=True, help="output directory")
+    s.add_argument("--jobs", type=positive_int, default=0,
+                   help="parallel scenario processes (default: cores)")
+    s.add_argument("--filter", default=None, help="glob on scenario names or families")
+    s.add_argument("--no-log", action="store_true", help="do not write Rerun .rrd logs")
+    s.add_argument("--executor", choices=["local", "ray"], default="local")
+    s.add_argument("--ray-address", default=None, help="ray.init address (e.g. auto)")
+    _add_plugin(s)
+    s.set_defaults(func=cmd_run)
+
+
+def _compare_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    s = sub.add_parser("compare", help="compare two run directories; exit 1 on a behaviour "
+                                       "regression, 2 when nothing can be compared")
+    s.add_argument("base")
+    s.add_argument("new")
+    s.add_argument("--out", default=None, help="where compare.csv/.html go (default NEW/compare)")
+    s.add_argument("--tolerances", default=None, help="TOML file of per-metric tolerances")
+    s.add_argument("--timing-gate", action="store_true",
+                   help="a catalog-wide timing slowdown fails too (default: it warns)")
+    s.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    s.set_defaults(func=cmd_compare)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="hwyeval", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action=_Version, nargs=0, help="print versions and exit")
+    sub = p.add_subparsers(dest="command", required=True)
+    s = sub.add_parser("list", help="print the expanded scenario names of a catalog")
+    s.add_argument("catalog")
+    s.add_argument("--filter", default=None, help="glob on scenario names or families")
+    _add_plugin(s)
+    s.set_defaults(func=cmd_list)
+    _run_parser(sub)
+    s = sub.add_parser("report", help="(re)write results.csv, summary.csv, junit.xml, report.html")
+    s.add_argument("dir")
+    s.set_defaults(func=cmd_report)
+    _compare_parser(sub)
+    s = sub.add_parser("view", help="open Rerun logs (or print the command without a display)")
+    s.add_argument("dir", help="a run directory, an output directory or an .rrd file")
+    s.add_argument("--failed", action="store_true", help="every non-passing run of DIR")
+    s.add_argument("--web", action="store_true", help="serve Rerun's web viewer over HTTP")
+    s.add_argument("--port", type=positive_int, default=9090, help="web viewer port (--web)")
+    s.add_argument("--bind", default="127.0.0.1", help="address to serve on (--web)")
+    s.set_defaults(func=cmd_view)
+    s = sub.add_parser("bench", help="speed and memory benchmark (ratios, one run)")
+    s.add_argument("--out", default=None, help="write every figure as JSON")
+    s.add_argument("--controller-only", action="store_true",
+                   help="only the plant-only controller timing (no SUMO, no Ipopt)")
+    s.set_defaults(func=cmd_bench)
+    s = sub.add_parser("controllers", help="list registered controllers (NAME: its options)")
+    s.add_argument("name", nargs="?", default=None)
+    _add_plugin(s)
+    s.set_defaults(func=cmd_controllers)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from suite.catalog import CatalogError
+
+    args = build_parser().parse_args(argv)  # argument errors: usage and exit 2
+    try:
+        return int(args.func(args))
+    except (CatalogError, UsageError, FileNotFoundError) as exc:
+        # catalog and input errors carry file/scenario/key in their message
+        err(str(exc))
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        err("interrupted")
+        return 130
+    except BrokenPipeError:
+        # the reader of our output went away (hwyeval list | head): not an error
+        return EXIT_OK
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,97 @@
+"""What every command shares: exit codes, input errors, plug-ins, catalogs, safe output."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+EXIT_OK = 0
+EXIT_FAIL = 1
+EXIT_INPUT = 2
+
+
+class UsageError(ValueError):
+    """Invalid command-line input (exit code 2, the message without a traceback)."""
+
+
+class Output:
+    """Lines to stdout that survive a closed pipe (``hwyeval list | head``): once the
+    reader has gone, further lines are dropped and the command goes on (a run still
+    writes its reports)."""
+
+    def __init__(self, stream: TextIO | None = None) -> None:
+        self.stream = stream if stream is not None else sys.stdout
+        self.closed = False
+
+    def line(self, text: str = "") -> None:
+        if self.closed:
+            return
+        try:
+            self.stream.write(text + "\n")
+            self.stream.flush()
+        except BrokenPipeError:
+            self.closed = True
+            # stdout's buffer still holds data; point fd 1 at /dev/null so the
+            # interpreter's final flush does not raise again
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self.stream.fileno())
+            os.close(devnull)
+
+
+def err(msg: str) -> None:
+    print(f"hwyeval: {msg}", file=sys.stderr)
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {value}")
+    return value
+
+
+@dataclass(frozen=True)
+class Plugins:
+    """The ``--plugin`` modules of a command, loaded in this process."""
+
+    modules: tuple[Any, ...] = ()  # controllers.registry.PluginModule
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return tuple(m.label for m in self.modules)
+
+
+def load_plugins(specs: list[str] | None) -> Plugins:
+    """Import every ``--plugin`` (path of a .py file or a module name) here; a plug-in
+    that does not import is a UsageError naming it and its last error line."""
+    from controllers import registry
+
+    modules = []
+    for spec in specs or []:
+        try:
+            module = registry.plugin_module(spec)
+            registry.load_plugin(module)
+        except Exception as exc:  # noqa: BLE001 - any import error is the user's input
+            raise UsageError(f"--plugin {spec}: {type(exc).__name__}: {exc}") from exc
+        modules.append(module)
+    return Plugins(tuple(modules))
+
+
+def load_catalog_for(catalog: str, pattern: str | None) -> tuple[Any, list[Any]]:
+    """The catalog and its scenarios (``--filter`` applied; none matching is an error)."""
+    from suite.catalog import expand_filter, load_catalog
+
+    cat = load_catalog(Path(catalog))
+    scenarios = list(cat.scenarios)
+    if pattern:
+        scenarios = list(expand_filter(scenarios, pattern))
+        if not scenarios:
+            raise UsageError(f"{catalog}: --filter {pattern!r} matches no scenario")
+    return cat, scenarios
