@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import sys
 import time
 from collections import defaultdict
@@ -24,7 +25,7 @@ from rerun_fixtures import (
 
 from reports.record import Failure, load_run, write_run_json
 from suite.rerun.blueprint import ViewGeometry, default_blueprint
-from suite.rerun.log import ENTITY_PATHS, lane_edges, recording_id_for, write_rrd
+from suite.rerun.log import ENTITY_PATHS, application_id_for, lane_edges, write_rrd
 from suite.rerun.viewer import failed_runs, open_logs, resolve_logs, view_command
 
 WORLD_PATHS = [
@@ -149,21 +150,53 @@ def test_vehicles_and_stalled(collision_run: tuple[Path, Path]) -> None:
     assert not rows_at_step(chunks, "/world/ego/velocity", 5, "Arrows2D:labels")
 
 
-def test_recording_id_stable_and_seeded(tmp_path: Path) -> None:
+def test_recording_ids_are_unique_per_run_and_the_application_groups_a_scenario(
+        tmp_path: Path) -> None:
     a = write_rrd(make_run_dir(tmp_path / "a", seed=7, steps=40))
+    recordings = [RrdReader(a).recordings()[0]]
     b = write_rrd(make_run_dir(tmp_path / "b", seed=7, steps=40))
-    c = write_rrd(make_run_dir(tmp_path / "c", seed=8, steps=40))
-    again = write_rrd(a.parent)
-    ids = [RrdReader(p).recordings()[0].recording_id for p in (a, b, c, again)]
-    assert ids[0] == ids[1] == ids[3] == recording_id_for("smoke", "stalled_pass", 7)
-    assert ids[2] != ids[0]
-    assert recording_id_for("other", "stalled_pass", 7) != ids[0]
-    assert recording_id_for("catalogs/smoke.yaml", "stalled_pass", 7) == ids[0]
-    assert write_rrd(make_run_dir(tmp_path / "d", seed=7, steps=40), catalog_name="x") and \
-        RrdReader(tmp_path / "d" / "stalled_pass" / "run.rrd").recordings()[0].recording_id \
-        == recording_id_for("x", "stalled_pass", 7)
-    assert RrdReader(a).recordings()[0].application_id == "hwyeval"
+    again = write_rrd(a.parent)  # the same run directory logged again: a new recording
+    other = write_rrd(make_run_dir(tmp_path / "c", scenario="other_case", seed=7, steps=40))
+    recordings += [RrdReader(p).recordings()[0] for p in (b, again, other)]
+    ids = [r.recording_id for r in recordings]
+    assert len(set(ids)) == 4, "two nights of one scenario must never merge"
+    apps = [r.application_id for r in recordings]
+    assert apps[0] == apps[1] == apps[2] == application_id_for("smoke", "stalled_pass") \
+        == "hwyeval:smoke:stalled_pass"
+    assert apps[3] == "hwyeval:smoke:other_case"
+    assert application_id_for("catalogs/smoke.toml", "stalled_pass") == apps[0]
+    write_rrd(make_run_dir(tmp_path / "d", seed=7, steps=40), catalog_name="x")
+    assert RrdReader(tmp_path / "d" / "stalled_pass" / "run.rrd").recordings()[0] \
+        .application_id == "hwyeval:x:stalled_pass"
     assert RrdReader(a).blueprints(), "default blueprint must be embedded"
+
+
+def test_verdict_ttc_and_criteria_limits_are_logged(tmp_path: Path) -> None:
+    run_dir = make_run_dir(tmp_path, seed=3, steps=120, criteria={"min_gap_m": 2.0})
+    chunks = read_chunks(write_rrd(run_dir))
+    verdict = load_run(run_dir, trace=False, neighbours=False, arrays=False,
+                       series=False).verdict
+    assert verdict is not None
+
+    def values(entity: str) -> list[float]:
+        out: list[float] = []
+        for c in chunks:
+            if c.entity_path == entity and not c.is_static:
+                rb = c.to_record_batch()
+                name = next(n for n in rb.schema.names if n.endswith("Scalars:scalars"))
+                out += [v[0] for v in rb.column(name).to_pylist()]
+        return out
+
+    ttc = values("/safety/ttc_s/ahead")
+    assert ttc and max(ttc) <= 10.0  # +inf drawn at the cap: the panel is never empty
+    min_ttc = verdict.value("min_ttc_s")
+    assert values("/safety/ttc_s/verdict_min") == pytest.approx([min(min_ttc, 10.0)] * 2)
+    assert values("/safety/ttc_s/limit") == pytest.approx([0.95, 0.95])
+    assert values("/safety/min_gap_m/limit") == pytest.approx([2.0, 2.0])
+    assert values("/comfort/accel_mps2/lat_limit_pos") == pytest.approx([4.89, 4.89])
+    assert values("/comfort/accel_mps2/lat_limit_neg") == pytest.approx([-4.89, -4.89])
+    assert values("/comfort/accel_mps2/limit_min") == pytest.approx([-4.05, -4.05])
+    assert not values("/safety/ellipse_margin/limit")  # off by default: not drawn
 
 
 def test_events_for_collision(collision_run: tuple[Path, Path]) -> None:
@@ -273,9 +306,10 @@ def test_verdict_series_are_logged(collision_run: tuple[Path, Path]) -> None:
     jerk = _scalars(chunks, "/comfort/jerk_mps3/total")
     np.testing.assert_allclose([jerk[k] for k in range(300)], record.series.jerk_mps3,
                                rtol=1e-6)
-    ttc = _scalars(chunks, "/safety/ttc_s/ahead")  # +inf (no conflict) is left out
-    finite = np.flatnonzero(np.isfinite(record.series.ttc_s))
-    assert sorted(ttc) == finite.tolist()
+    ttc = _scalars(chunks, "/safety/ttc_s/ahead")  # +inf (no conflict) drawn at the cap
+    assert sorted(ttc) == list(range(300))
+    expected = np.minimum(np.nan_to_num(record.series.ttc_s, posinf=10.0), 10.0)
+    np.testing.assert_allclose([ttc[k] for k in range(300)], expected, rtol=1e-6)
 
 
 def test_blueprint_builds() -> None:
@@ -313,10 +347,13 @@ def test_birdseye_png_from_rrd(collision_run: tuple[Path, Path]) -> None:
 # ------------------------------------------------------------------ viewer
 
 
-def test_view_command() -> None:
-    cmd = view_command([Path("a/run.rrd"), Path("b/run.rrd")])
-    assert cmd[:3] == [sys.executable, "-m", "rerun_cli"]
-    assert cmd[3:] == ["a/run.rrd", "b/run.rrd"]
+def test_view_command_is_portable(tmp_path: Path) -> None:
+    cmd = view_command([Path("a/run.rrd"), tmp_path / "b" / "run.rrd"], cwd=tmp_path)
+    # the viewer by its name and paths relative to the current directory: nothing of
+    # this host (interpreter, absolute paths) in a command meant for another machine
+    assert cmd == ["rerun", os.path.relpath(Path("a/run.rrd").absolute(), tmp_path),
+                   "b/run.rrd"]
+    assert sys.executable not in " ".join(cmd)
 
 
 def test_failed_runs_and_open_logs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
@@ -336,7 +373,13 @@ def test_failed_runs_and_open_logs(tmp_path: Path, monkeypatch: pytest.MonkeyPat
     assert open_logs([], failed_only_from=tmp_path) == 0
     captured = capsys.readouterr()
     out = captured.out
-    assert "rerun_cli" in out and str(bad / "run.rrd") in out and str(err / "run.rrd") in out
+    rel = os.path.relpath(tmp_path)
+    assert "rerun " in out and f"{rel}/bad/run.rrd" in out and f"{rel}/err/run.rrd" in out
+    assert sys.executable not in out  # portable: not this host's interpreter
+    monkeypatch.chdir(tmp_path)
+    assert open_logs([], failed_only_from=tmp_path) == 0
+    out = capsys.readouterr().out
+    assert "  rerun bad/run.rrd err/run.rrd\n" in out and str(tmp_path) not in out
     assert (bad / "run.rrd").is_file()  # written on demand from the recorded arrays
     assert "good" not in out
     assert "broken: cannot write run.rrd" in captured.err  # reported, the others open

@@ -11,7 +11,7 @@ import pytest
 from rerun.chunk import RrdReader
 from rerun_fixtures import read_chunks, render_birdseye, rows_at_step
 
-from suite.rerun.log import recording_id_for
+from suite.rerun.log import application_id_for
 
 pytestmark = pytest.mark.sumo
 
@@ -78,11 +78,14 @@ def test_one_ego_pose_per_step_and_static_road_once(two_runs) -> None:
     assert plan and len(plan[0]) == 21
 
 
-def test_recording_id_is_stable_across_identical_runs(two_runs) -> None:
+def test_two_runs_of_one_scenario_are_two_recordings_of_one_application(two_runs) -> None:
     a, b = two_runs
-    id_a = RrdReader(a / "run.rrd").recordings()[0].recording_id
-    id_b = RrdReader(b / "run.rrd").recordings()[0].recording_id
-    assert id_a == id_b == recording_id_for("rrdcat", "rrd_stall_traffic", 4)
+    rec_a = RrdReader(a / "run.rrd").recordings()[0]
+    rec_b = RrdReader(b / "run.rrd").recordings()[0]
+    print(f"recording ids: {rec_a.recording_id} {rec_b.recording_id}")
+    assert rec_a.recording_id != rec_b.recording_id
+    assert rec_a.application_id == rec_b.application_id \
+        == application_id_for("rrdcat", "rrd_stall_traffic") == "hwyeval:rrdcat:rrd_stall_traffic"
 
 
 def test_birdseye_picture_from_the_log(two_runs, tmp_path: Path) -> None:

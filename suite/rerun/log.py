@@ -6,9 +6,14 @@ as recorded, and the verdict and series the metrics stored (never recomputed her
 
 Recording
 ---------
-* application id ``hwyeval`` (default), recording id :func:`recording_id_for`
-  (catalog, scenario, seed): a UUID5 string, the same for the same run, so a re-run
-  replaces the old recording in the viewer instead of piling up beside it;
+* application id :func:`application_id_for` (``hwyeval:<catalog>:<scenario>``): the
+  viewer groups every recording of one scenario under it, so last night's and
+  tonight's run of a scenario sit side by side;
+* recording id :func:`new_recording_id`, a fresh UUID4 per written log: two runs of
+  the same scenario (two nights, a re-run) are two recordings, never merged into one
+  (which would show every event twice); the recording's name says scenario, seed,
+  status and catalog, its start time is when the log was written, and its properties
+  (``/__properties``) carry catalog, scenario, seed, controller, status and version;
 * a per-run ``rr.RecordingStream`` (never the global one) saved to ``run.rrd`` with
   the default blueprint of :mod:`suite.rerun.blueprint` embedded;
 * timelines ``sim_time`` (duration, from ``t_s``) and ``step`` (sequence).
@@ -42,6 +47,8 @@ verdict located them), ``/docs/scenario``, ``/docs/controller``.
 
 from __future__ import annotations
 
+import re
+import time
 import uuid
 from pathlib import Path
 
@@ -64,10 +71,8 @@ from suite.rerun.world import (
     log_vehicles,
 )
 
-__all__ = ["ENTITY_PATHS", "lane_edges", "log_record", "recording_id_for", "write_rrd"]
-
-# Stable namespace for recording ids (uuid5 of "hwyeval|catalog|scenario|seed").
-_RECORDING_NAMESPACE = uuid.UUID("6f1d3c2a-9b7e-5d41-8c3a-2e6f0b9a7d15")
+__all__ = ["ENTITY_PATHS", "application_id_for", "lane_edges", "log_record",
+           "new_recording_id", "write_rrd"]
 
 
 def _catalog_name(catalog: str | None) -> str:
@@ -80,10 +85,16 @@ def _catalog_name(catalog: str | None) -> str:
     return path.name if "/" in catalog else catalog
 
 
-def recording_id_for(catalog: str | None, scenario: str, seed: int | str | None) -> str:
-    """Stable recording id of a run: UUID5 of (catalog name, scenario, seed)."""
-    key = f"hwyeval|{_catalog_name(catalog)}|{scenario}|{'' if seed is None else seed}"
-    return str(uuid.uuid5(_RECORDING_NAMESPACE, key))
+def application_id_for(catalog: str | None, scenario: str) -> str:
+    """``hwyeval:<catalog name>:<scenario>``: what groups a scenario's recordings
+    (characters Rerun does not accept in an application id become ``_``)."""
+    parts = ["hwyeval", _catalog_name(catalog), scenario]
+    return ":".join(re.sub(r"[^A-Za-z0-9_-]", "_", p) for p in parts if p)
+
+
+def new_recording_id() -> str:
+    """A recording id of its own for every log written (UUID4)."""
+    return str(uuid.uuid4())
 
 
 def view_geometry(record: RunRecord) -> ViewGeometry:
@@ -123,17 +134,28 @@ def _write(log: RunLog) -> None:
     log_events(log, collect_events(log))
 
 
+def _send_identity(rec: rr.RecordingStream, record: RunRecord, catalog: str) -> None:
+    info = record.info
+    rec.send_recording_name(f"{info.scenario} · seed {info.seed} · {record.status.upper()} · "
+                            f"{_catalog_name(catalog) or 'no catalog'}")
+    rec.send_recording_start_time_nanos(time.time_ns())
+    rec.send_property("run", rr.AnyValues(
+        catalog=_catalog_name(catalog), scenario=info.scenario, seed=str(info.seed),
+        controller=info.controller, status=record.status,
+        hwyeval_version=info.hwyeval_version))
+
+
 def log_record(record: RunRecord, out: Path, *, catalog_name: str | None = None,
-               application_id: str = "hwyeval") -> Path:
-    """Write the recording of ``record`` (judged or not) to ``out``; returns ``out``."""
+               application_id: str | None = None) -> Path:
+    """Write the recording of ``record`` (judged or not) to ``out``; returns ``out``.
+    ``application_id`` defaults to :func:`application_id_for` the run's scenario."""
     info = record.info
     catalog = catalog_name if catalog_name is not None else (info.catalog_name or info.catalog)
-    rid = recording_id_for(catalog, info.scenario, info.seed)
-    rec = rr.RecordingStream(application_id, recording_id=rid)
+    app = application_id or application_id_for(catalog, info.scenario)
+    rec = rr.RecordingStream(app, recording_id=new_recording_id())
     try:
         rec.save(out, default_blueprint=default_blueprint(view_geometry(record)))
-        rec.send_recording_name(f"{info.scenario} · seed {info.seed} · "
-                                f"{record.status.upper()}")
+        _send_identity(rec, record, catalog)
         _write(RunLog(rec, record))
         rec.flush()
     finally:
@@ -142,7 +164,7 @@ def log_record(record: RunRecord, out: Path, *, catalog_name: str | None = None,
 
 
 def write_rrd(run_dir: Path, *, catalog_name: str | None = None,
-              application_id: str = "hwyeval") -> Path:
+              application_id: str | None = None) -> Path:
     """Write ``run_dir/run.rrd`` from the run directory; returns its path.
 
     Raises what :func:`reports.record.load_run` raises for an unreadable directory.

@@ -1,8 +1,14 @@
 """The time series of a recording (``Scalars`` with static ``SeriesLines`` names/colours).
 
 ``/safety/...``      SUMO SSM TTC (``/safety/ttc_s``) and ours, the verdict's, ahead and
-                     behind (``/safety/ttc_s/{ahead,behind}``), gap, collision flag,
-                     off-road excess and ellipse margin (the verdict's series)
+                     behind (``/safety/ttc_s/{ahead,behind}``; "no conflict", +∞, is
+                     drawn at :data:`TTC_CAP_S` so the panel is never empty), the
+                     verdict's minimum (``/safety/ttc_s/verdict_min``), gap, collision
+                     flag, off-road excess and ellipse margin (the verdict's series)
+limits               every criterion in force is a constant series next to its signal
+                     (``.../limit``, ``.../limit_min``, ``.../limit_max``; a bound on an
+                     absolute value as ``limit_pos`` and ``limit_neg``), from the
+                     verdict's ``criteria``: :data:`LIMITS`
 ``/comfort/...``     body accelerations as recorded and as the verdict smoothed them,
                      jerks, yaw rate and yaw acceleration (the verdict's series)
 ``/controller/...``  speed and set-point, lateral deviation, heading error, steering and
@@ -16,9 +22,10 @@
 from __future__ import annotations
 
 import numpy as np
+import rerun as rr
 
 from suite.rerun.paths import CONTROLLER
-from suite.rerun.stream import Colour, RunLog
+from suite.rerun.stream import Colour, RunLog, time_columns
 
 BLUE = (80, 170, 255, 255)
 ORANGE = (255, 150, 60, 255)
@@ -29,6 +36,58 @@ MAGENTA = (230, 80, 230, 255)
 RED = (255, 60, 60, 255)
 GREEN = (60, 230, 120, 255)
 PALETTE = (BLUE, ORANGE, GREEN, PURPLE, MAGENTA, GREY)
+LIMIT = (255, 80, 80, 160)
+TTC_CAP_S = 10.0  # +inf TTC ("no conflict") is drawn here
+
+# criterion -> (entity path of its limit line(s), label, symmetric: ±limit)
+LIMITS: dict[str, tuple[str, str, bool]] = {
+    "min_ttc_s": ("/safety/ttc_s/limit", "min TTC limit [s]", False),
+    "min_gap_m": ("/safety/min_gap_m/limit", "min gap limit [m]", False),
+    "min_ellipse_margin": ("/safety/ellipse_margin/limit", "ellipse margin limit", False),
+    "min_long_acc_mps2": ("/comfort/accel_mps2/limit_min", "long acc limit [m/s²]", False),
+    "max_long_acc_mps2": ("/comfort/accel_mps2/limit_max", "long acc limit [m/s²]", False),
+    "max_abs_lat_acc_mps2": ("/comfort/accel_mps2/lat_limit", "|lat acc| limit [m/s²]", True),
+    "max_abs_long_jerk_mps3": ("/comfort/jerk_mps3/long_limit", "|long jerk| limit [m/s³]",
+                               True),
+    "max_abs_jerk_mps3": ("/comfort/jerk_mps3/total_limit", "|jerk| limit [m/s³]", False),
+    "max_abs_yaw_rate_radps": ("/comfort/yaw_rate_radps/limit", "|yaw rate| limit [rad/s]",
+                               True),
+    "max_abs_yaw_acc_radps2": ("/comfort/yaw_acc_radps2/limit", "|yaw acc| limit [rad/s²]",
+                               True),
+    "max_residual": ("/controller/residual/limit", "residual limit", False),
+}
+
+
+def _constant(log: RunLog, path: str, value: float, name: str, color: Colour) -> None:
+    """A horizontal line over the whole run (first and last trace row)."""
+    if log.n == 0 or not np.isfinite(value):
+        return
+    rows = np.array([0, log.n - 1]) if log.n > 1 else np.array([0])
+    log.static(path, rr.SeriesLines(names=[name], colors=[color], widths=[1.0]))
+    log.send(path, rr.Scalars.columns(scalars=np.full(rows.size, float(value))),
+             idx=time_columns(log.steps[rows], log.t[rows]))
+
+
+def log_limits(log: RunLog) -> None:
+    """Every criterion in force of :data:`LIMITS` as a constant series by its signal."""
+    verdict = log.record.verdict
+    if verdict is None:
+        return
+    for criterion, (path, label, symmetric) in LIMITS.items():
+        limit = verdict.criteria.get(criterion)
+        if limit is None:
+            continue
+        if symmetric:
+            _constant(log, f"{path}_pos", float(limit), f"{label} = {limit:g}", LIMIT)
+            _constant(log, f"{path}_neg", -float(limit), f"{label} = -{limit:g}", LIMIT)
+        else:
+            _constant(log, path, float(limit), f"{label} = {limit:g}", LIMIT)
+
+
+def _capped_ttc(values: np.ndarray) -> np.ndarray:
+    out: np.ndarray = np.where(np.isposinf(values), TTC_CAP_S,
+                               np.minimum(values, TTC_CAP_S))
+    return out
 
 
 def log_safety(log: RunLog) -> None:
@@ -40,8 +99,16 @@ def log_safety(log: RunLog) -> None:
     s("/safety/collision", collided.astype(float), "collision", (255, 0, 0, 255))
     if series is None:
         return
-    s("/safety/ttc_s/ahead", series.ttc_s, "TTC ahead [s] (verdict)", ORANGE)
-    s("/safety/ttc_s/behind", series.ttc_rear_s, "TTC behind [s] (verdict)", PURPLE)
+    s("/safety/ttc_s/ahead", _capped_ttc(series.ttc_s),
+      f"TTC ahead [s] (verdict; none = {TTC_CAP_S:g})", ORANGE)
+    s("/safety/ttc_s/behind", _capped_ttc(series.ttc_rear_s),
+      f"TTC behind [s] (verdict; none = {TTC_CAP_S:g})", PURPLE)
+    verdict = log.record.verdict
+    if verdict is not None:
+        value = verdict.value("min_ttc_s")
+        shown = "∞ (no conflict)" if np.isposinf(value) else f"{value:.3g} s"
+        _constant(log, "/safety/ttc_s/verdict_min", float(_capped_ttc(np.array([value]))[0]),
+                  f"min TTC (verdict) = {shown}", (255, 200, 120, 255))
     s("/safety/offroad_excess_m", series.offroad_excess_m, "corner beyond the lanes [m]",
       ORANGE)
     s("/safety/ellipse_margin", series.ellipse_margin, "ellipse margin (< 0 inside)", MAGENTA)
@@ -128,4 +195,5 @@ def log_scalars(log: RunLog) -> None:
     log_comfort(log)
     log_controller(log)
     log_timing(log)
+    log_limits(log)
 

@@ -2,14 +2,23 @@
 
 ``hwyeval view DIR/<scenario>`` and ``hwyeval view DIR --failed`` call
 :func:`open_logs`. With a display (``DISPLAY`` or ``WAYLAND_DISPLAY`` set) the viewer
-is started in the background; otherwise the exact command is printed, to run on a
-machine with a screen (after copying the files, or with the same paths mounted).
+is started in the background; otherwise a portable command is printed: ``rerun``
+(the viewer of rerun-sdk) with the logs' paths relative to the current directory, so
+it works on any machine with the output copied or mounted at the same relative place,
+and never names this host's interpreter or absolute paths.
+
+``hwyeval view ... --web`` (:func:`serve_web`) serves the logs with Rerun's web viewer
+over HTTP from this machine (``rerun --serve-web``): open the printed address in a
+browser, through an SSH tunnel from a headless server.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import shlex
+import shutil
+import signal
 import subprocess
 import sys
 from collections.abc import Iterable
@@ -19,10 +28,41 @@ from reports.record import RRD, RUN_JSON, RecordError, iter_run_dirs
 from reports.record.meta import END_OK
 from reports.record.run import read_run_json
 
+VIEWER_HINT = "rerun is the viewer of rerun-sdk 0.41: pip install 'rerun-sdk==0.41.*'"
 
-def view_command(paths: list[Path]) -> list[str]:
-    """The command that opens these .rrd files in the viewer bundled with rerun-sdk."""
-    return [sys.executable, "-m", "rerun_cli", *(str(Path(p)) for p in paths)]
+
+def portable_path(path: Path, cwd: Path | None = None) -> str:
+    """``path`` relative to ``cwd`` (default: the current directory)."""
+    return os.path.relpath(Path(path).absolute(), (cwd or Path.cwd()).absolute())
+
+
+def view_command(paths: list[Path], cwd: Path | None = None) -> list[str]:
+    """The portable command that opens these .rrd files (module doc)."""
+    return ["rerun", *(portable_path(p, cwd) for p in paths)]
+
+
+def _rerun_executable() -> list[str]:
+    """This environment's Rerun viewer binary itself (rerun-sdk's ``rerun_cli/rerun``; the
+    ``rerun`` script on PATH is a wrapper that would outlive a terminate)."""
+    spec = importlib.util.find_spec("rerun_cli")
+    if spec is not None and spec.origin is not None:
+        binary = Path(spec.origin).parent / "rerun"
+        if binary.is_file():
+            return [str(binary)]
+    found = shutil.which("rerun")
+    return [found] if found else [sys.executable, "-m", "rerun_cli"]
+
+
+def web_command(paths: list[Path], port: int, bind: str) -> list[str]:
+    """``rerun --serve-web`` of these files: web viewer on ``port``, gRPC on port + 1."""
+    return [*_rerun_executable(), "--serve-web", "--web-viewer-port", str(port), "--port",
+            str(port + 1), "--bind", bind, *(str(p) for p in paths)]
+
+
+def web_url(port: int, bind: str) -> str:
+    """The address that opens the served logs in a browser."""
+    host = "localhost" if bind in ("0.0.0.0", "127.0.0.1", "::") else bind
+    return (f"http://{host}:{port}/?url=rerun%2Bhttp%3A%2F%2F{host}%3A{port + 1}%2Fproxy")
 
 
 def run_status(run_dir: Path) -> str:
@@ -106,13 +146,54 @@ def open_logs(run_dirs_or_rrds: Iterable[Path | str], *,
         return 1
     cmd = view_command(paths)
     if not has_display():
-        print("no display (DISPLAY/WAYLAND_DISPLAY unset); open the logs with:")
-        print(shlex.join(cmd))
+        print("no display (DISPLAY/WAYLAND_DISPLAY unset); on a machine with a screen, from "
+              "this directory (or with the output copied to the same relative place):")
+        print("  " + shlex.join(cmd))
+        print(f"  ({VIEWER_HINT})")
+        print("or serve them here to a browser: hwyeval view "
+              + " ".join(shlex.quote(portable_path(Path(i))) for i in items) + " --web")
         return 0
     try:
-        subprocess.Popen(cmd, start_new_session=True)
+        subprocess.Popen([*_rerun_executable(), *(str(p) for p in paths)],
+                         start_new_session=True)
     except OSError as exc:
         print(f"cannot start the viewer ({exc}); run:\n{shlex.join(cmd)}", file=sys.stderr)
         return 1
     print(f"opened {len(paths)} log(s) in the Rerun viewer")
     return 0
+
+
+def serve_web(items: Iterable[Path | str], *, port: int = 9090, bind: str = "127.0.0.1") -> int:
+    """Serve the logs with Rerun's web viewer until interrupted; returns an exit code
+    (1 when there is nothing to serve or the server does not start)."""
+    paths = resolve_logs(list(items))
+    if not paths:
+        print("no Rerun logs to serve", file=sys.stderr)
+        return 1
+    url = web_url(port, bind)
+    print(f"serving {len(paths)} log(s) with Rerun's web viewer: open {url}")
+    if bind in ("127.0.0.1", "localhost"):
+        print(f"  (from another machine: ssh -L {port}:localhost:{port} -L {port + 1}:localhost:"
+              f"{port + 1} THIS_HOST, then open the address there; Ctrl-C stops)")
+    try:
+        child = subprocess.Popen(web_command(paths, port, bind))
+    except OSError as exc:
+        print(f"cannot start the web viewer: {exc}", file=sys.stderr)
+        return 1
+
+    def stop(signum: int, frame: object) -> None:
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        return child.wait()
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        if child.poll() is None:  # our server: stopped with us
+            child.terminate()
+            try:
+                child.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                child.kill()
