@@ -1,4 +1,5 @@
-"""The behaviour layer: obstacles and pass-side choice from lane context (pure numpy, no SUMO)."""
+"""The behaviour layer on scripted scenes (pure numpy, no SUMO): lane plan, gap acceptance,
+car following, obstacles."""
 
 from __future__ import annotations
 
@@ -7,9 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from controllers.behaviour.decision import EgoShape, LaneBehaviour
+from controllers.behaviour.decision import BehaviourParams, EgoShape, LaneBehaviour
 from controllers.behaviour.ellipses import ellipse_semi_axes
-from controllers.behaviour.gap import GapPolicy, follow_speed_mps, gap_is_free
+from controllers.behaviour.following import FollowParams, follow_speed_mps
+from controllers.behaviour.lane_change import LaneChangeParams
+from controllers.behaviour.perception import relative_lanes
 from controllers.behaviour.types import (
     SIDE_FOLLOW,
     SIDE_LEFT,
@@ -29,47 +32,44 @@ W = 3.5
 THREE_LANES = {i: LaneSlot(i, W, True, False) for i in range(3)}
 
 
-def neighbours(rows: list[tuple[str, float, float, float]]) -> Traffic:
+def traffic(rows: list[tuple[str, float, float, float]], road: str = "e0",
+            lanes: list[int] | None = None) -> Traffic:
     """rows: (id, x, y, speed) on a straight road along +X; 'stalled*' ids are stalled."""
     n = len(rows)
     return Traffic(
         ids=tuple(r[0] for r in rows), x_m=np.array([r[1] for r in rows], float),
         y_m=np.array([r[2] for r in rows], float), heading_rad=np.zeros(n),
         speed_mps=np.array([r[3] for r in rows], float), length_m=np.full(n, 4.8),
-        width_m=np.full(n, 1.9), lane_index=np.zeros(n, dtype=np.int64), road_id=("e0",) * n,
+        width_m=np.full(n, 1.9),
+        lane_index=np.array(lanes if lanes is not None else [-1] * n, dtype=np.int64),
+        road_id=(road,) * n,
         stalled=np.array([r[0].startswith("stalled") for r in rows], dtype=bool))
-
-
-def behaviour(path: FrenetPath, shoulder: bool = False, gap: GapPolicy | None = None
-              ) -> LaneBehaviour:
-    return LaneBehaviour(path, ObstaclePolicy(), EgoShape(4.8, 1.9, shoulder), W,
-                         gap or GapPolicy())
-
-
-def build(b: LaneBehaviour, s: float, y: float, nb: Traffic, lanes: dict[int, LaneSlot],
-          ref_lane: int = 1, v: float = 25.0) -> Decision:
-    """The decision of ``b`` with the ego's CG at (s, y) on the straight road along +X."""
-    return b.decide(EgoFrenet(s, y, s, y, v), nb, LaneContext(lanes, ref_lane), 25.0)
 
 
 @pytest.fixture(scope="module")
 def path() -> FrenetPath:
-    return FrenetPath.from_polyline(np.array([[0.0, 0.0], [2000.0, 0.0]]))
+    return FrenetPath.from_polyline(np.array([[0.0, 0.0], [3000.0, 0.0]]))
 
 
-def decide(path: FrenetPath, rows, lanes=THREE_LANES, ref_lane=1, shoulder=False,
-           ego_s=100.0, ego_y=0.0, ego_v=25.0):
-    return build(behaviour(path, shoulder), ego_s, ego_y, neighbours(rows), lanes, ref_lane, ego_v)
+def behaviour(path: FrenetPath, shoulder: bool = False, **lane_change: float) -> LaneBehaviour:
+    params = BehaviourParams(lane_change=LaneChangeParams(**lane_change))
+    return LaneBehaviour(path, ObstaclePolicy(), EgoShape(4.8, 1.9, shoulder), W, params)
+
+
+def at(b: LaneBehaviour, s: float, y: float, nb: Traffic, lanes: dict[int, LaneSlot],
+       ref: int = 1, v: float = 25.0, t: float = 100.0, set_speed: float = 25.0) -> Decision:
+    """The decision with the ego's CG at (s, y) at time t; lane i's centre at (i - ref) W."""
+    slots = {i: LaneSlot(sl.index, sl.width_m, sl.allows_passenger, sl.is_shoulder,
+                         offset_m=(i - ref) * W, continues_m=sl.continues_m)
+             for i, sl in lanes.items()}
+    return b.decide(EgoFrenet(s, y, s, y, v, t), nb, LaneContext(slots, ref), set_speed)
 
 
 def test_ellipse_contains_the_box_sum_rectangle_with_margins() -> None:
     pol = ObstaclePolicy()
     a, b = ellipse_semi_axes(4.8, 1.9, 4.8, 1.9, pol)
-    # Corners of the Minkowski rectangle (half sizes 4.8 x 1.9) plus lateral margin, with the
-    # centre shifted by the offset away from the pass side, are inside the ellipse.
     for dy in (1.9 + pol.offset_m, -(1.9 - pol.offset_m)):
         assert (4.8 / a) ** 2 + (dy / b) ** 2 <= 1.0 + 1e-12
-    # Every point of the ego box around a CG on the ellipse boundary misses the obstacle box.
     obstacle = box_corners(0.0, 0.0, 0.0, 4.8, 1.9)
     for ang in np.linspace(0, 2 * math.pi, 73):
         cx, cy = a * math.cos(ang), b * math.sin(ang) - pol.offset_m
@@ -77,120 +77,207 @@ def test_ellipse_contains_the_box_sum_rectangle_with_margins() -> None:
         assert float(box_distance(ego[None], obstacle[None])[0]) > 0.0
 
 
-def test_no_neighbours_means_no_obstacle(path: FrenetPath) -> None:
-    d = decide(path, [])
+def test_an_empty_road_keeps_the_lane_at_the_set_speed(path: FrenetPath) -> None:
+    d = at(behaviour(path), 100.0, 0.0, traffic([]), THREE_LANES)
     assert d.side == SIDE_NONE and d.obstacles.count == 0 and d.target_speed_mps == 25.0
+    assert d.lateral_reference_m == 0.0
 
 
-def test_stalled_car_in_lane_with_free_neighbours_is_passed_on_the_left(path: FrenetPath) -> None:
-    d = decide(path, [("stalled0", 170.0, 0.0, 0.0)])
-    assert d.side == SIDE_LEFT and "left lane free" in d.reason
+def test_a_stalled_car_ahead_is_passed_on_the_left(path: FrenetPath) -> None:
+    d = at(behaviour(path), 100.0, 0.0, traffic([("stalled0", 200.0, 0.0, 0.0)]), THREE_LANES)
+    assert d.side == SIDE_LEFT and d.reason.startswith("pass stalled0 on the left")
+    assert "left lane free" in d.reason
+    assert d.lateral_reference_m == pytest.approx(W)
     assert d.obstacles.count == 1
     assert d.obstacles.y_m[0] == pytest.approx(-ObstaclePolicy().offset_m)  # shifted right
 
 
-def test_left_gap_occupied_picks_right(path: FrenetPath) -> None:
-    d = decide(path, [("stalled0", 170.0, 0.0, 0.0), ("car", 110.0, W, 25.0)])
-    assert d.side == SIDE_RIGHT and "left gap occupied" in d.reason
-    assert d.obstacles.y_m[list(d.obstacle_ids).index("stalled0")] == pytest.approx(0.3)
+def test_a_car_alongside_on_the_left_sends_the_pass_right(path: FrenetPath) -> None:
+    nb = traffic([("stalled0", 200.0, 0.0, 0.0), ("car", 102.0, W, 25.0)])
+    d = at(behaviour(path), 100.0, 0.0, nb, THREE_LANES)
+    assert d.side == SIDE_RIGHT and "on the right" in d.reason
+    assert d.lateral_reference_m == pytest.approx(-W)
 
 
-def test_no_free_side_follows_and_slows(path: FrenetPath) -> None:
-    rows = [("stalled0", 170.0, 0.0, 0.0), ("carL", 110.0, W, 25.0), ("carR", 95.0, -W, 25.0)]
-    d = decide(path, rows)
-    assert d.side == SIDE_FOLLOW and d.reason.startswith("follow:")
+def test_no_free_side_follows_the_stalled_car(path: FrenetPath) -> None:
+    nb = traffic([("stalled0", 200.0, 0.0, 0.0), ("carL", 101.0, W, 25.0),
+                  ("carR", 98.0, -W, 25.0)])
+    d = at(behaviour(path), 100.0, 0.0, nb, THREE_LANES)
+    assert d.side == SIDE_FOLLOW and d.reason.startswith("follow stalled0")
+    assert "left gap too short" in d.reason and "right gap too short" in d.reason
     assert d.target_speed_mps < 25.0
+    blocker = list(d.obstacle_ids).index("stalled0")
+    # A wall across the carriageway: no way round and no sideways push.
+    assert d.obstacles.semi_b_m[blocker] == pytest.approx(10.0 * W)
+
+
+def test_a_fast_car_closing_from_behind_in_the_target_lane_blocks_the_change(
+        path: FrenetPath) -> None:
+    # A car at 35 m/s against the ego's 25 in the left lane: 40 m bumper gap behind, it
+    # sheds the 10 m/s within the 36 m beyond the 4 m standstill at 1.4 m/s² (fine); at
+    # 25 m it needs 100 / (2 * 21.2) = 2.4 m/s², more than the 2 m/s² bound (MOBIL).
+    ok = at(behaviour(path), 100.0, 0.0,
+            traffic([("stalled0", 200.0, 0.0, 0.0), ("fast", 55.2, W, 35.0)]), THREE_LANES)
+    assert ok.side == SIDE_LEFT
+    no = at(behaviour(path), 100.0, 0.0,
+            traffic([("stalled0", 200.0, 0.0, 0.0), ("fast", 70.0, W, 35.0)]), THREE_LANES)
+    assert no.side == SIDE_RIGHT and "left gap too short" in no.reason
+    assert "closing from behind" in no.reason
+
+
+def test_a_slower_car_in_the_passing_lane_is_followed_not_passed(path: FrenetPath) -> None:
+    # The ego's lane has a car at 20 m/s; so has the left lane (and the right lane is a
+    # shoulder): nothing is gained by changing: follow, no lane change.
+    lanes = {0: LaneSlot(0, 3.0, False, True), 1: LaneSlot(1, W, True, False),
+             2: LaneSlot(2, W, True, False)}
+    nb = traffic([("slow", 140.0, 0.0, 20.0), ("slowL", 160.0, W, 20.0)])
+    d = at(behaviour(path), 100.0, 0.0, nb, lanes)
+    assert d.side == SIDE_FOLLOW and d.lateral_reference_m == 0.0
+    assert d.target_speed_mps < 25.0
+    assert d.reason.startswith("follow slow")
 
 
 def test_shoulder_only_when_allowed(path: FrenetPath) -> None:
-    # Ego in the rightmost traffic lane (1) above a shoulder (0); the left lane is busy.
     lanes = {0: LaneSlot(0, 3.0, False, True), 1: LaneSlot(1, W, True, False),
              2: LaneSlot(2, W, True, False)}
-    rows = [("stalled0", 170.0, 0.0, 0.0), ("carL", 110.0, W, 25.0)]
-    refused = decide(path, rows, lanes=lanes, shoulder=False)
+    nb = traffic([("stalled0", 200.0, 0.0, 0.0), ("carL", 101.0, W, 25.0)])
+    refused = at(behaviour(path, shoulder=False), 100.0, 0.0, nb, lanes)
     assert refused.side == SIDE_FOLLOW and "shoulder (not allowed)" in refused.reason
-    allowed = decide(path, rows, lanes=lanes, shoulder=True)
+    allowed = at(behaviour(path, shoulder=True), 100.0, 0.0, nb, lanes)
     assert allowed.side == SIDE_RIGHT and "shoulder free" in allowed.reason
+    # The lateral reference is the shoulder's centre: half of 3.5 + 3.0 to the right.
+    assert allowed.lateral_reference_m == pytest.approx(-W)
 
 
-def test_missing_and_barred_lanes_are_not_used(path: FrenetPath) -> None:
+def test_missing_barred_and_ending_lanes_are_not_used(path: FrenetPath) -> None:
     lanes = {0: LaneSlot(0, W, False, False), 1: LaneSlot(1, W, True, False)}
-    d = decide(path, [("stalled0", 170.0, 0.0, 0.0)], lanes=lanes)
+    d = at(behaviour(path), 100.0, 0.0, traffic([("stalled0", 200.0, 0.0, 0.0)]), lanes)
     assert d.side == SIDE_FOLLOW
     assert "no left lane" in d.reason and "bars passenger" in d.reason
+    ending = {1: LaneSlot(1, W, True, False), 2: LaneSlot(2, W, True, False, continues_m=80.0)}
+    e = at(behaviour(path), 100.0, 0.0, traffic([("stalled0", 200.0, 0.0, 0.0)]), ending)
+    assert e.side == SIDE_FOLLOW and "left lane ends in 80 m" in e.reason
 
 
-def test_committed_side_is_kept_mid_manoeuvre(path: FrenetPath) -> None:
+def test_a_change_aborts_before_the_commit_point_and_not_after(path: FrenetPath) -> None:
     b = behaviour(path)
-    first = build(b, 140.0, 1.5, neighbours([("stalled0", 170.0, 0.0, 0.0)]), THREE_LANES)
+    first = at(b, 100.0, 0.0, traffic([("stalled0", 200.0, 0.0, 0.0)]), THREE_LANES)
     assert first.side == SIDE_LEFT
-    # A fast car now appears in the left lane; the ego is already 1.5 m across: stay left.
-    nb2 = neighbours([("stalled0", 170.0, 0.0, 0.0), ("fast", 120.0, W, 35.0)])
-    again = build(b, 142.0, 1.6, nb2, THREE_LANES)
-    assert again.side == SIDE_LEFT and again.reason.startswith("committed")
+    danger = traffic([("stalled0", 200.0, 0.0, 0.0), ("fast", 95.0, W, 40.0)])
+    early = at(b, 101.0, 1.0, danger, THREE_LANES, t=100.1)  # 1.0 of 3.5 m: before commit
+    assert early.reason.startswith("abort left") and early.lateral_reference_m == 0.0
+    b2 = behaviour(path)
+    at(b2, 100.0, 0.0, traffic([("stalled0", 200.0, 0.0, 0.0)]), THREE_LANES)
+    late = at(b2, 101.0, 2.5, danger, THREE_LANES, t=100.1)  # past half the lateral move
+    assert late.side == SIDE_LEFT and late.lateral_reference_m == pytest.approx(W)
 
 
 def test_cars_two_lanes_away_are_not_obstacles(path: FrenetPath) -> None:
-    d = decide(path, [("far", 130.0, 2 * W, 20.0)], ref_lane=0,
-               lanes={i: LaneSlot(i, W, True, False) for i in range(3)})
+    d = at(behaviour(path), 100.0, 0.0, traffic([("far", 130.0, 2 * W, 20.0)]), THREE_LANES,
+           ref=0)
     assert d.obstacles.count == 0
 
 
-def test_gap_is_free_known_answers() -> None:
-    g = GapPolicy(clearance_m=4.0, time_gap_s=0.0, pass_after_m=15.0)
-    empty = np.zeros(0)
-    assert gap_is_free(0.0, 25.0, 4.8, 60.0, 4.8, empty, empty, empty, g)
-    # A car alongside at the same speed blocks; one 100 m ahead at the same speed does not.
-    assert not gap_is_free(0.0, 25.0, 4.8, 60.0, 4.8, np.array([2.0]), np.array([25.0]),
-                           np.array([4.8]), g)
-    assert gap_is_free(0.0, 25.0, 4.8, 60.0, 4.8, np.array([100.0]), np.array([25.0]),
-                       np.array([4.8]), g)
-    # A car 30 m behind closing at 10 m/s reaches the ego within the ~3.1 s window: blocked.
-    assert not gap_is_free(0.0, 25.0, 4.8, 60.0, 4.8, np.array([-30.0]), np.array([35.0]),
-                           np.array([4.8]), g)
-    # The same car at 25 m/s stays 40 m behind: free.
-    assert gap_is_free(0.0, 25.0, 4.8, 60.0, 4.8, np.array([-40.0]), np.array([25.0]),
-                       np.array([4.8]), g)
+def test_follow_law_known_answers() -> None:
+    p = FollowParams(time_gap_s=1.8, standstill_m=6.0, gap_close_s=3.0, comfort_decel_mps2=2.0)
+    # At the desired gap (6 + 1.8 * 20 = 42 m) behind a car at 20 m/s: its speed.
+    assert follow_speed_mps(42.0, 20.0, 20.0, 30.0, p) == pytest.approx(20.0)
+    # 30 m farther: v_gap = 20 + 30/3 = 30, v_safe = sqrt(20² + 2·2·66) = 25.77.
+    assert follow_speed_mps(72.0, 20.0, 20.0, 30.0, p) == pytest.approx(math.sqrt(664.0))
+    # Behind a stopped car at standstill distance: stop.
+    assert follow_speed_mps(6.0, 0.0, 0.0, 30.0, p) == 0.0
+    # 106 m behind a stopped car at 0 m/s: v_gap = (106 - 6)/3 = 33.3, v_safe = 20.
+    assert follow_speed_mps(106.0, 0.0, 0.0, 30.0, p) == pytest.approx(20.0)
+    with pytest.raises(ValueError, match="time_gap_s"):
+        FollowParams(time_gap_s=1.0)
 
 
-def test_a_stalled_car_in_the_target_lane_blocks_even_a_crawling_ego() -> None:
-    g = GapPolicy()
-    # Ego nearly stopped 13 m behind the blocker; a second stalled car sits in the target
-    # lane 5 m beyond it. The time-based test alone would call this free at 0.3 m/s.
-    assert not gap_is_free(404.6, 0.3, 4.8, 417.6, 4.8, np.array([422.6]), np.array([0.0]),
-                           np.array([4.8]), g)
-    # Far beyond the manoeuvre it does not matter.
-    assert gap_is_free(404.6, 0.3, 4.8, 417.6, 4.8, np.array([520.0]), np.array([0.0]),
-                       np.array([4.8]), g)
+def test_follow_law_sees_a_braking_lead_before_the_gap_shrinks() -> None:
+    p = FollowParams(time_gap_s=1.8, standstill_m=6.0, gap_close_s=3.0,
+                     comfort_decel_mps2=2.0, anticipation_s=1.0)
+    # A lead at 40 m/s 100 m ahead of an ego at 33 m/s (desired gap 6 + 1.8·33 = 65.4 m):
+    # steady, v_gap = 40 + 34.6/3 and v_safe = sqrt(40² + 2·2·94) both exceed the cruise
+    # speed 40. Braking at 4 m/s² its stopping distance is 200 m: v_safe = sqrt(40² · 2/4
+    # + 2·2·94) = sqrt(1176) = 34.3 (Gipps' bound) binds, v_gap = 36 + 34.6/3 does not.
+    assert follow_speed_mps(100.0, 40.0, 33.0, 40.0, p) == 40.0
+    braking = follow_speed_mps(100.0, 40.0, 33.0, 40.0, p, lead_accel_mps2=-4.0)
+    assert braking == pytest.approx(math.sqrt(1176.0))
+    # 42 m behind it the anticipated speed binds: 40 - 4·1 + (42 - 65.4)/3 = 28.2.
+    assert follow_speed_mps(42.0, 40.0, 33.0, 40.0, p) == pytest.approx(40.0 - 23.4 / 3.0)
+    assert follow_speed_mps(42.0, 40.0, 33.0, 40.0, p, lead_accel_mps2=-4.0) == pytest.approx(
+        36.0 - 23.4 / 3.0)
+    # Braking no harder than b leaves the constant-speed bound unchanged.
+    assert follow_speed_mps(72.0, 20.0, 20.0, 30.0, p, lead_accel_mps2=-1.0) == pytest.approx(
+        min(20.0 - 1.0 + 30.0 / 3.0, math.sqrt(664.0)))
+    # An accelerating lead is not extrapolated upwards.
+    assert follow_speed_mps(42.0, 20.0, 20.0, 30.0, p, lead_accel_mps2=2.0) == pytest.approx(20.0)
 
 
-def test_follow_speed_known_answers() -> None:
-    g = GapPolicy(follow_standstill_m=6.0, follow_time_gap_s=1.8, follow_decel_mps2=2.0)
-    assert follow_speed_mps(6.0, 0.0, 25.0, g) == 0.0
-    assert follow_speed_mps(6.0 + 100.0, 0.0, 25.0, g) == pytest.approx(20.0)  # sqrt(2*2*100)
-    assert follow_speed_mps(500.0, 0.0, 25.0, g) == 25.0
-    assert follow_speed_mps(6.0 + 1.8 * 10.0, 10.0, 25.0, g) == pytest.approx(10.0)
-    assert follow_speed_mps(12.0, 10.0, 25.0, g) == pytest.approx(5.0)
+def test_tracker_estimates_the_lead_deceleration_from_held_speeds() -> None:
+    from controllers.behaviour.tracking import AccelerationTracker, TrackingParams
+    tr = AccelerationTracker(TrackingParams(tau_s=0.4))
+    # SUMO updates the speed every 0.1 s while the controller looks every 0.02 s: the same
+    # speed five times, then a step of -0.4 m/s (a = -4 m/s²).
+    est = 0.0
+    for k in range(200):
+        t = 0.02 * k
+        v = 40.0 - 4.0 * 0.1 * math.floor(t / 0.1 + 1e-9)
+        est = float(tr.update(t, traffic([("lead", 0.0, 0.0, v)]))[0])
+    assert est == pytest.approx(-4.0, abs=0.6)
+    # A vehicle unseen for longer than forget_s starts again at 0.
+    assert float(tr.update(10.0, traffic([("lead", 0.0, 0.0, 5.0)]))[0]) == 0.0
+    with pytest.raises(ValueError, match="tau_s"):
+        TrackingParams(tau_s=0.0)
 
 
-def test_lateral_reference_is_the_pass_lane_until_the_car_is_passed(path: FrenetPath) -> None:
-    lanes = {0: LaneSlot(0, 3.0, False, True), 1: LaneSlot(1, W, True, False),
-             2: LaneSlot(2, W, True, False)}
-    b = behaviour(path, True, GapPolicy(pass_after_m=15.0))
-    nb = neighbours([("stalled0", 300.0, 0.0, 0.0)])
+def test_a_car_behind_in_the_kept_lane_is_no_obstacle(path: FrenetPath) -> None:
+    # Queued behind a stalled car with no free side: the follower 7 m behind must not get
+    # an ellipse (squeezed between two ellipses, the ego's only way out is sideways).
+    nb = traffic([("stalled0", 110.0, 0.0, 0.0), ("behind", 93.0, 0.0, 0.0),
+                  ("carL", 101.0, W, 5.0), ("carR", 99.0, -W, 5.0)])
+    d = at(behaviour(path), 100.0, 0.0, nb, THREE_LANES, v=0.0)
+    assert d.side == SIDE_FOLLOW
+    assert "behind" not in d.obstacle_ids and "stalled0" in d.obstacle_ids
 
-    def at(s: float, y: float) -> Decision:
-        return build(b, s, y, nb, lanes)
 
-    assert at(200.0, 0.0).lateral_reference_m == pytest.approx(W)  # left: 3.5 m over
-    alongside = at(301.0, 3.4)
-    assert alongside.side == SIDE_LEFT and alongside.lateral_reference_m == pytest.approx(W)
-    assert alongside.reason == "passing stalled0"
-    # Stalled box centre at 300, half lengths 2.4 + 2.4: 15 m beyond that is s = 319.8.
-    assert at(319.0, 3.5).lateral_reference_m == pytest.approx(W)
-    done = at(320.5, 3.5)
-    assert done.lateral_reference_m == 0.0 and done.side == SIDE_NONE
-    # Passing on a 3.0 m shoulder: the reference is between the two centres, 3.25 m right.
-    busy = neighbours([("stalled0", 300.0, 0.0, 0.0), ("carL", 200.0, W, 25.0)])
-    d = build(behaviour(path, True), 200.0, 0.0, busy, lanes)
-    assert d.side == SIDE_RIGHT and d.lateral_reference_m == pytest.approx(-3.25)
+def test_back_in_the_home_lane_once_the_passed_car_is_behind(path: FrenetPath) -> None:
+    b = behaviour(path, hold_s=0.0)
+    nb = traffic([("stalled0", 200.0, 0.0, 0.0)])
+    assert at(b, 100.0, 0.0, nb, THREE_LANES).side == SIDE_LEFT
+    assert at(b, 150.0, W, nb, THREE_LANES, t=102.0).reason == "in the left lane"
+    alongside = at(b, 219.0, W, nb, THREE_LANES, t=104.0)
+    assert alongside.lateral_reference_m == pytest.approx(W)  # not yet 15 m beyond
+    # Box centres 4.8 m apart when the bumpers meet: 15 m beyond at s = 200 + 4.8 + 15.
+    back = at(b, 220.5, W, nb, THREE_LANES, t=105.0)
+    assert back.reason.startswith("return right") and back.lateral_reference_m == 0.0
+    # ... but not while a car is alongside in the home lane.
+    b2 = behaviour(path, hold_s=0.0)
+    at(b2, 100.0, 0.0, nb, THREE_LANES)
+    at(b2, 150.0, W, nb, THREE_LANES, t=102.0)
+    busy = traffic([("stalled0", 200.0, 0.0, 0.0), ("car", 219.0, 0.0, 25.0)])
+    held = at(b2, 220.5, W, busy, THREE_LANES, t=105.0)
+    assert held.lateral_reference_m == pytest.approx(W)
+
+
+def test_a_lane_change_holds_for_hold_s(path: FrenetPath) -> None:
+    b = behaviour(path, hold_s=3.0)
+    nb = traffic([("stalled0", 200.0, 0.0, 0.0)])
+    at(b, 100.0, 0.0, nb, THREE_LANES, t=10.0)
+    at(b, 150.0, W, nb, THREE_LANES, t=12.0)  # completes at t = 12
+    early = at(b, 222.0, W, nb, THREE_LANES, t=13.0)
+    assert early.lateral_reference_m == pytest.approx(W) and "holding" in early.reason
+    later = at(b, 240.0, W, nb, THREE_LANES, t=15.5)
+    assert later.lateral_reference_m == 0.0
+
+
+def test_relative_lanes_follow_the_worlds_lane_index_across_a_shift() -> None:
+    # On road "b" an on-ramp lane was added on the right: the reference lane is index 1
+    # there, 0 on road "a". A car on "b" in lane 1 is in the ego's lane.
+    nb = traffic([("x", 150.0, 0.0, 20.0), ("y", 150.0, 3.5, 20.0)], road="b", lanes=[1, 2])
+    ctx = LaneContext({0: LaneSlot(0, W, True, False), 1: LaneSlot(1, W, True, False)}, 0,
+                      reference_index_by_road={"a": 0, "b": 1})
+    from controllers.behaviour.perception import FrenetTraffic
+
+    fn = FrenetTraffic(np.array([150.0, 150.0]), np.array([0.0, 3.5]), np.zeros(2),
+                       np.zeros(2), np.full(2, 4.8), np.full(2, 1.9))
+    assert relative_lanes(nb, fn, ctx, W).tolist() == [0, 1]

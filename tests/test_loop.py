@@ -170,7 +170,9 @@ def test_the_decision_reaches_the_controller_and_the_trace() -> None:
     assert first.pass_side == SIDE_LEFT and first.lateral_reference_m == pytest.approx(W)
     assert first.obstacles.count == 1
     assert np.all(trace.decision.side == SIDE_LEFT)
-    assert all("left lane free" in r for r in trace.decision.side_reason)
+    reasons = list(trace.decision.side_reason)
+    assert reasons[0].startswith("pass stalled0 on the left: left lane free")
+    assert all(r.startswith(("pass stalled0", "passing stalled0")) for r in reasons)
     assert np.all(trace.decision.lat_ref_m == pytest.approx(W))
     # The controller's own diagnostics are trace columns with the values it returned.
     assert np.all(trace.extra["seen_obstacles"] == 1.0)

@@ -158,15 +158,14 @@ def test_slower_moving_car_overtaken() -> None:
 def test_follow_mode_stops_behind_blocking_car() -> None:
     # No side is free (pass_side 0: no offset, the ellipse sits on the lane): the runner
     # lowers the target speed along its comfortable follow profile (behaviour.gap).
-    from controllers.behaviour.gap import GapPolicy, follow_speed_mps
+    from follow_profiles import stop_behind_profile
 
     v0 = 20.0
-    gap_policy = GapPolicy()
     ctl = make_two_loop({})
 
     def follow(t: float, s: float) -> float:
         bumper_gap = 150.0 - 2.4 - (s + VehicleParams().cg_to_front_bumper_m)
-        return follow_speed_mps(max(bumper_gap, 0.0), 0.0, v0, gap_policy)
+        return stop_behind_profile(max(bumper_gap, 0.0), 0.0, v0)
 
     tr = simulate(ctl, STRAIGHT, STALLED, duration_s=20.0, dt=DT, pass_side=0,
                   initial_speed_mps=v0, target_speed_fn=follow)
@@ -392,7 +391,7 @@ def test_step_sets_every_diagnostic_field(monkeypatch: pytest.MonkeyPatch) -> No
                   lateral_fn=lambda t, s, y: (1, 3.5))
     assert given and all(g == names for g in given), names - set.intersection(*given)
     # Defaults are NaN, 0 or False: finite and non-zero at some step is set for real.
-    for name in names - {"fallback", "guard_fired"}:  # rare events: not expected here
+    for name in names - {"fallback", "guard_fired", "mrm"}:  # rare events: not expected here
         values = tr[name]
         assert np.all(np.isfinite(values)), name
         assert np.any(values != 0.0), name
@@ -407,6 +406,6 @@ def test_parameters_round_trip_through_the_factory() -> None:
     params = ctl.parameters()
     assert params["outer"]["c_y"] == 2.0 and isinstance(params["outer"]["c_y"], float)
     assert params["inner"]["preview"] is False and params["launch"]["blend_s"] == 1.0
-    assert set(params) == {"name", "outer", "inner", "lateral", "launch", "policy"}
+    assert set(params) == {"name", "outer", "inner", "lateral", "launch", "policy", "fallback"}
     again = make_two_loop(json.loads(json.dumps(params)))
     assert again.params == ctl.params and again.parameters() == params

@@ -14,10 +14,10 @@ import math
 
 import numpy as np
 import pytest
+from follow_profiles import stop_behind_profile
 from scipy.signal import savgol_filter
 
 from controllers.behaviour.ellipses import FrenetVehicle
-from controllers.behaviour.gap import GapPolicy, follow_speed_mps
 from controllers.plant.vehicle_model import VehicleParams
 from controllers.protocol import ConfigError
 from controllers.sim.closed_loop import FOLLOW_SIDE, simulate
@@ -49,12 +49,11 @@ def _bumper_gap(s_cg: np.ndarray | float) -> np.ndarray:
 
 def _stop_then_pass(road: np.ndarray, duration: float = 45.0, **options: object) -> dict:
     """Follow (no side free, the runner's follow profile) until T_FREE, then pass left."""
-    gap_policy = GapPolicy()
 
     def target(t: float, s: float) -> float:
         if t >= T_FREE:
             return 22.0
-        return follow_speed_mps(max(float(_bumper_gap(s)), 0.0), 0.0, 20.0, gap_policy)
+        return stop_behind_profile(max(float(_bumper_gap(s)), 0.0), 0.0, 20.0)
 
     def lateral(t: float, s: float, y: float) -> tuple[int, float]:
         return (1, LANE) if t >= T_FREE else (FOLLOW_SIDE, 0.0)

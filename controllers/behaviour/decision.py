@@ -1,23 +1,36 @@
-"""Lane behaviour: which vehicle blocks the ego, which side to pass it on, the obstacles.
+"""Lane behaviour: which lane to be in, how fast to go, and the obstacles to plan around.
 
-Per step (all arrays, no simulator calls):
+Per step, from the scene (:mod:`controllers.behaviour.perception`: every vehicle in a lane
+relative to the reference lane, leads and followers per lane):
 
-1. Project every vehicle onto the reference path (:mod:`controllers.behaviour.perception`).
-2. The *blocker* is the nearest vehicle ahead that overlaps the reference lane laterally,
-   lies within the planning range (the longest of the detection distance, ``v
-   plan_horizon_s`` and the comfortable stopping distance + 30 m) and is slower than the
-   ego by more than 1 m/s (stalled cars always).
-3. Pass side for the blocker: a neighbour lane qualifies when it exists at the ego's
-   position, admits passenger cars or is a shoulder the scenario allows, and has a free
-   gap (:func:`controllers.behaviour.gap.gap_is_free`). Left is tried first (overtake on
-   the left); with no side free the ego follows: the blocker's ellipse is widened across
-   the lane and the speed target drops to the follow speed. A side, once the ego has
-   moved more than ``commit_offset_m`` towards it, is kept for that blocker.
-4. The lateral reference is the pass lane's centre (signed distance between lane
-   centres) until the ego is ``pass_after_m`` beyond the passed vehicle.
-5. Ellipses (:mod:`controllers.behaviour.ellipses`) for vehicles within the detection
-   distance in the lanes the ego occupies or is moving into, nearest first; the blocker
-   always among them, its centre offset away from the pass side.
+1. **The lane plan** (``_Plan``): keep a lane, or change from one lane into a neighbour.
+   * Keeping lane c, a change is *wanted* to pass (a neighbour lane's speed, the speed of
+     its lead within the planning range or the cruise speed, beats lane c's by
+     ``incentive_mps``: a stopped or slower car ahead), to return towards the home lane
+     (the reference lane: the lane the catalog asked for) once the passed vehicle is
+     ``pass_after_m`` behind and the home lane is as fast, or because lane c ends. Left is
+     tried before right. A wanted change starts when it is safe
+     (:func:`controllers.behaviour.lane_change.lane_change_safety`: lead and follower of
+     the target lane, MOBIL's bound on the new follower's braking) and the lane has been
+     kept for ``hold_s`` (sooner behind a stopped vehicle or a lane that ends).
+   * Changing, the change is re-checked with a looser bound until the commit point (half
+     the lateral move) and *aborted* (back to the origin lane) if the gap closes; it is
+     complete within ``done_tolerance_m`` of the target lane's centre.
+2. **The speed target**: the car-following set-point
+   (:mod:`controllers.behaviour.following`, with the lead's acceleration estimated from
+   its speeds by :mod:`controllers.behaviour.tracking`) behind the lead of the lane kept, or, during
+   a change, behind the target lane's lead and, until the ego can clear it, the origin
+   lane's; behind the end of a lane that ends. A moving car ahead is always followed by
+   the speed target, never by an ellipse alone.
+3. **The lateral reference**: the centre of the plan's lane, from the reference lane's.
+4. **Obstacles**: ellipses (:mod:`controllers.behaviour.ellipses`) for the vehicles within
+   the detection distance in every lane the ego's box occupies and in the plan's lanes,
+   the leads first, never a car behind in the lane kept or left (only the lane moved
+   into counts behind the ego); the vehicle being passed shifted away from the pass
+   side; a lead the ego must follow made a wall across the carriageway (B of ten lane
+   widths: no way round and no sideways push); an ellipse that would contain the ego (a
+   car in the next lane alongside) narrowed to leave it outside (its barrier would be
+   undefined there).
 """
 
 from __future__ import annotations
@@ -29,8 +42,15 @@ import numpy as np
 import numpy.typing as npt
 
 from controllers.behaviour.ellipses import ellipse_semi_axes, offset_centre_y
-from controllers.behaviour.gap import GapPolicy, follow_speed_mps, gap_is_free
-from controllers.behaviour.perception import FrenetTraffic, project_traffic
+from controllers.behaviour.following import FollowParams, follow_speed_mps
+from controllers.behaviour.lane_change import LaneChangeParams, lane_change_safety
+from controllers.behaviour.tracking import AccelerationTracker
+from controllers.behaviour.perception import (
+    LaneScene,
+    Neighbour,
+    project_traffic,
+    relative_lanes,
+)
 from controllers.behaviour.types import (
     SIDE_FOLLOW,
     SIDE_LEFT,
@@ -45,8 +65,9 @@ from controllers.behaviour.types import (
 )
 from controllers.path.frenet import FrenetPath
 
-IntArray = npt.NDArray[np.int64]
-_LANE_END_MARGIN_M = 20.0  # a pass lane must continue this far beyond the manoeuvre
+IntpArray = npt.NDArray[np.intp]
+_LANE_CHANGE_RATE_MPS = 1.2  # lateral speed of a change, for "can the ego clear it in time"
+_FOLLOW_WALL_LANES = 10.0  # semi-axis B of a followed lead's ellipse, in lane widths
 
 
 @dataclass(frozen=True)
@@ -58,26 +79,39 @@ class EgoShape:
     allow_shoulder: bool = False
 
 
-@dataclass
-class _Scene:
-    """One step's inputs, projected (internal to :class:`LaneBehaviour`)."""
+@dataclass(frozen=True)
+class BehaviourParams:
+    """Car following and lane changing (see their modules for the units)."""
 
-    ego: EgoFrenet
-    traffic: Traffic
-    fn: FrenetTraffic
-    lanes: LaneContext
-    ds: np.ndarray
-    lane_rel: IntArray
+    follow: FollowParams = field(default_factory=FollowParams)
+    lane_change: LaneChangeParams = field(default_factory=LaneChangeParams)
 
 
-@dataclass
-class _Pass:
-    """The vehicle being passed: side and lateral reference [m], kept until the ego is
-    ``pass_after_m`` beyond its rear so the car does not cut back in early."""
+@dataclass(frozen=True)
+class _Plan:
+    """The lane plan: ``lane`` held (``origin == lane``) or moved into from ``origin``,
+    since ``since_s``; ``passing``: the vehicle being passed ('' none)."""
 
-    vehicle_id: str
-    side: int
-    lateral_reference_m: float
+    lane: int
+    origin: int
+    since_s: float
+    passing: str = ""
+
+    @property
+    def changing(self) -> bool:
+        return self.lane != self.origin
+
+
+@dataclass(frozen=True)
+class _Want:
+    """A wanted change: target lane, where the manoeuvre ends (path s), why, whether it
+    may skip the hold time, and the vehicle it passes ('' none)."""
+
+    target: int
+    end_s_m: float
+    why: str
+    urgent: bool
+    passing: str = ""
 
 
 @dataclass
@@ -85,197 +119,271 @@ class LaneBehaviour:
     """The :class:`controllers.behaviour.protocol.Behaviour` of hwyeval (module docstring).
 
     path: the controller's reference path; policy: the controller's obstacle policy;
-    ego: its box; lane_width_m: the reference lane's width at the start [m] (bins
-    vehicles into lanes relative to the reference lane); gap: gap and follow rules.
+    ego: its box; lane_width_m: the reference lane's width at the start [m] (lane
+    spacing where the lane context has no offsets); params: following and lane changes.
     """
 
     path: FrenetPath
     policy: ObstaclePolicy
     ego: EgoShape
     lane_width_m: float
-    gap: GapPolicy = field(default_factory=GapPolicy)
-    _committed: dict[str, int] = field(default_factory=dict, init=False)
-    _passing: _Pass | None = field(default=None, init=False)
+    params: BehaviourParams = field(default_factory=BehaviourParams)
+    _plan: _Plan | None = field(default=None, init=False)
+    _tracker: AccelerationTracker = field(default_factory=AccelerationTracker, init=False)
+    _accel: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), init=False)
 
+    # ------------------------------------------------------------------ the step
     def decide(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext,
                set_speed_mps: float) -> Decision:
-        if traffic.count == 0 or self.policy.max_obstacles == 0:
-            return Decision(side=SIDE_NONE, reason="no obstacle", target_speed_mps=set_speed_mps)
-        fn = project_traffic(self.path, traffic, ego)
-        scene = _Scene(ego, traffic, fn, lanes, fn.s_m - ego.s_m, self._lanes_of(fn.y_m, lanes))
-        blocker = self._blocker(scene)
-        side, reason, target = SIDE_NONE, "no obstacle in lane", set_speed_mps
-        if blocker >= 0:
-            side, reason = self._choose_side(scene, blocker)
-            if side == SIDE_FOLLOW:
-                target = self._follow_target(scene, blocker, set_speed_mps)
-        lat_ref = 0.0
-        if blocker < 0 and self._passing is not None:
-            side, reason, lat_ref, blocker = self._hold_pass(scene, side, reason)
-        elif self._passing is not None:
-            lat_ref = self._passing.lateral_reference_m
-        order = self._select(scene, side, blocker)
-        obstacles = self._ellipses(scene, order, side, blocker)
+        scene = self._scene(ego, traffic, lanes)
+        self._accel = self._tracker.update(ego.t_s, traffic)
+        plan = self._plan or _Plan(scene.ego_lane, scene.ego_lane, -math.inf)
+        plan, reason, follow = self._update(scene, plan, set_speed_mps)
+        self._plan = plan
+        target, lead = self._speed(scene, plan, set_speed_mps)
+        side = self._side(plan, follow)
+        order = self._select(scene, plan, lead)
+        obstacles = self._ellipses(scene, order, plan, side, lead if follow else -1)
         return Decision(obstacles=obstacles, side=side, reason=reason, target_speed_mps=target,
-                        lateral_reference_m=lat_ref,
+                        lateral_reference_m=scene.offset_m(plan.lane),
                         obstacle_ids=tuple(traffic.ids[i] for i in order))
 
-    # ------------------------------------------------------------------ steps
-    def _lanes_of(self, y_m: np.ndarray, lanes: LaneContext) -> IntArray:
-        """Lane of each lateral offset relative to the reference lane (0; left +1, right
-        -1, ...): the nearest lane centre of the lane context where all offsets are
-        known, else multiples of the lane width."""
+    def _scene(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext) -> LaneScene:
+        fn = project_traffic(self.path, traffic, ego)
+        rel = relative_lanes(traffic, fn, lanes, self.lane_width_m)
+        scene = LaneScene(ego, self.ego.length_m, self.ego.width_m, traffic, fn, rel, lanes,
+                          {}, self.lane_width_m)
         order = sorted(lanes.slots)
-        offsets = np.array([lanes.slots[i].offset_m for i in order], dtype=np.float64)
-        if not order or not np.all(np.isfinite(offsets)) or lanes.reference_index not in order:
-            return np.rint(y_m / self.lane_width_m).astype(np.int64)
-        nearest = np.argmin(np.abs(np.asarray(y_m)[:, None] - offsets[None, :]), axis=1)
-        # Beyond the outermost lanes keep counting in lane widths (a car on a shoulder
-        # the context does not list, or a lane the context has not reached yet).
-        rel = nearest - order.index(lanes.reference_index)
-        left = np.asarray(y_m) > offsets[-1] + 0.5 * self.lane_width_m
-        right = np.asarray(y_m) < offsets[0] - 0.5 * self.lane_width_m
-        rel = np.where(left, len(order) - 1 - order.index(lanes.reference_index)
-                       + np.rint((np.asarray(y_m) - offsets[-1]) / self.lane_width_m), rel)
-        rel = np.where(right, -order.index(lanes.reference_index)
-                       + np.rint((np.asarray(y_m) - offsets[0]) / self.lane_width_m), rel)
-        return rel.astype(np.int64)
+        ref = lanes.reference_index
+        if ref in order:
+            scene.lanes.update({k - order.index(ref): lanes.slots[index]
+                                for k, index in enumerate(order)})
+        elif lanes.slots:
+            scene.lanes[0] = next(iter(lanes.slots.values()))
+        return scene
 
-    def _reference_offset_m(self, lanes: LaneContext) -> float:
-        """The reference lane's centre from the path [m] (0 unless the path crosses
-        between lane centres, as it does where netconvert shifts lanes)."""
-        ref = lanes.slot(lanes.reference_index)
-        return ref.offset_m if ref is not None and math.isfinite(ref.offset_m) else 0.0
-
-    def _blocker(self, sc: _Scene) -> int:
-        """Index of the nearest blocking vehicle ahead (-1 if none)."""
-        pol, g, v = self.policy, self.gap, sc.ego.speed_mps
-        plan_range = max(pol.detection_distance_m, v * g.plan_horizon_s,
-                         v**2 / (2.0 * g.follow_decel_mps2) + g.follow_standstill_m + 30.0)
-        ref_y = self._reference_offset_m(sc.lanes)
-        overlap_lat = np.abs(sc.fn.y_m - ref_y) < 0.5 * (self.lane_width_m + sc.fn.width_m) - 0.2
-        slower = (sc.fn.v_s_mps < v - 1.0) | sc.traffic.stalled
-        blocking = overlap_lat & slower & (sc.ds > 0) & (sc.ds <= plan_range)
-        if not pol.moving_obstacles:
-            blocking &= sc.traffic.stalled
-        if not np.any(blocking):
-            return -1
-        return int(np.flatnonzero(blocking)[np.argmin(sc.ds[blocking])])
-
-    def _choose_side(self, sc: _Scene, blocker: int) -> tuple[int, str]:
-        """Pass side and reason for ``blocker``; updates the commitment and pass memory."""
-        bid = sc.traffic.ids[blocker]
-        side = SIDE_NONE
-        reason = ""
-        committed = self._committed.get(bid)
-        if committed in (SIDE_LEFT, SIDE_RIGHT):
-            ok, why = self._side_ok(committed, sc, blocker)
-            if ok or committed * sc.ego.lat_m > self.gap.commit_offset_m:
-                side, reason = committed, (why if ok else "committed " + why)
-        if side == SIDE_NONE:
-            reasons = []
-            for cand in (SIDE_LEFT, SIDE_RIGHT):
-                ok, why = self._side_ok(cand, sc, blocker)
+    # ------------------------------------------------------------------ lane plan
+    def _update(self, sc: LaneScene, plan: _Plan, set_speed: float) -> tuple[_Plan, str, bool]:
+        """(new plan, why, following): advance a change, or start one that is wanted."""
+        lc = self.params.lane_change
+        t = sc.ego.t_s
+        if plan.changing:
+            return self._advance_change(sc, plan)
+        want, blocked_by = self._wanted(sc, plan, set_speed)
+        if not want:
+            lead = blocked_by
+            if lead is not None:
+                lid = sc.traffic.ids[lead.index]
+                return plan, f"follow {lid} (no faster lane)", True
+            return plan, "keep lane: free" if plan.lane == 0 else "keep lane", False
+        reasons = []
+        for w in want:
+            ok, why = lane_change_safety(sc, w.target, w.end_s_m, lc, lc.safe_decel_mps2,
+                                         self.ego.allow_shoulder)
+            if not ok:
                 reasons.append(why)
-                if ok:
-                    side = cand
-                    reason = why + (f" ({reasons[0]})" if len(reasons) > 1 else "")
-                    break
-            if side == SIDE_NONE:
-                side, reason = SIDE_FOLLOW, "follow: " + "; ".join(reasons)
-        if side in (SIDE_LEFT, SIDE_RIGHT):
-            if side * sc.ego.lat_m > self.gap.commit_offset_m:
-                self._committed[bid] = side
-            self._passing = _Pass(bid, side, self._lane_offset_m(side, sc.lanes))
-        else:
-            self._passing = None
-        return side, reason
+                continue
+            if t - plan.since_s < lc.hold_s and not w.urgent:
+                reasons.append(f"{w.why}: holding the lane for {lc.hold_s:g} s")
+                continue
+            new = _Plan(w.target, plan.lane, t, w.passing or plan.passing)
+            tried = f" ({'; '.join(reasons)})" if reasons else ""
+            return new, f"{w.why}: {why}{tried}", False
+        if blocked_by is not None:
+            lid = sc.traffic.ids[blocked_by.index]
+            return plan, f"follow {lid}: " + "; ".join(reasons), True
+        return plan, "keep lane: " + "; ".join(reasons), False
 
-    def _side_ok(self, side: int, sc: _Scene, blocker: int) -> tuple[bool, str]:
-        name = "left" if side > 0 else "right"
-        slot = sc.lanes.slot(sc.lanes.reference_index + side)
-        if slot is None:
-            return False, f"no {name} lane"
-        if slot.is_shoulder and not self.ego.allow_shoulder:
-            return False, f"{name} is a shoulder (not allowed)"
-        if not slot.allows_passenger and not slot.is_shoulder:
-            return False, f"{name} lane bars passenger cars"
-        fn = sc.fn
-        needed = (float(fn.s_m[blocker]) + 0.5 * float(fn.length_m[blocker])
-                  + self.gap.pass_after_m - sc.ego.s_m + _LANE_END_MARGIN_M)
-        if slot.continues_m < needed:
-            return False, f"{name} lane ends in {slot.continues_m:.0f} m"
-        in_lane = sc.lane_rel == side
-        in_lane[blocker] = False
-        free = gap_is_free(sc.ego.s_m, sc.ego.speed_mps, self.ego.length_m,
-                           float(fn.s_m[blocker]), float(fn.length_m[blocker]),
-                           fn.s_m[in_lane], fn.v_s_mps[in_lane], fn.length_m[in_lane], self.gap)
-        if not free:
-            return False, f"{name} gap occupied"
-        return True, f"{name} {'shoulder' if slot.is_shoulder else 'lane'} free"
+    def _advance_change(self, sc: LaneScene, plan: _Plan) -> tuple[_Plan, str, bool]:
+        lc = self.params.lane_change
+        t = sc.ego.t_s
+        start, goal = sc.offset_m(plan.origin), sc.offset_m(plan.lane)
+        span = goal - start
+        progress = (sc.ego.lat_m - start) / span if abs(span) > 1e-6 else 1.0
+        side = "left" if plan.lane > plan.origin else "right"
+        if abs(sc.ego.lat_m - goal) < lc.done_tolerance_m:
+            return _Plan(plan.lane, plan.lane, t, plan.passing), f"in the {side} lane", False
+        if progress < lc.commit_fraction:
+            end = sc.ego.s_m + max(sc.ego.speed_mps, 5.0) * 4.0
+            ok, why = lane_change_safety(sc, plan.lane, end, lc, lc.abort_decel_mps2,
+                                         self.ego.allow_shoulder)
+            if not ok:
+                return (_Plan(plan.origin, plan.origin, t, plan.passing),
+                        f"abort {side}: {why}", False)
+        what = f"passing {plan.passing}" if plan.passing else f"changing {side}"
+        return plan, what, False
 
-    def _follow_target(self, sc: _Scene, blocker: int, set_speed_mps: float) -> float:
-        gap_m = max(float(sc.ds[blocker])
-                    - 0.5 * (sc.fn.length_m[blocker] + self.ego.length_m), 0.0)
-        return follow_speed_mps(gap_m, max(float(sc.fn.v_s_mps[blocker]), 0.0),
-                                set_speed_mps, self.gap)
+    def _lane_speed(self, sc: LaneScene, rel: int, set_speed: float
+                    ) -> tuple[float, Neighbour | None]:
+        """Steady speed in lane ``rel``: its lead's within the planning range, else the
+        cruise speed; and that lead."""
+        lc = self.params.lane_change
+        lead = sc.lead(rel)
+        horizon = max(self.policy.detection_distance_m,
+                      sc.ego.speed_mps * lc.plan_horizon_s,
+                      sc.ego.speed_mps**2 / (2.0 * self.params.follow.comfort_decel_mps2)
+                      + self.params.follow.standstill_m + 30.0)
+        if lead is None or lead.gap_m > horizon:
+            return set_speed, None
+        return min(set_speed, max(lead.speed_mps, 0.0)), lead
 
-    def _hold_pass(self, sc: _Scene, side: int, reason: str) -> tuple[int, str, float, int]:
-        """No blocker ahead: keep passing the remembered vehicle until it is behind."""
-        held = self._passing
-        if held is None:  # pragma: no cover - guarded by the caller
-            return side, reason, 0.0, -1
-        ids = sc.traffic.ids
-        idx = ids.index(held.vehicle_id) if held.vehicle_id in ids else -1
-        behind_by = (sc.ego.s_m - (sc.fn.s_m[idx] + 0.5 * (sc.fn.length_m[idx]
+    def _wanted(self, sc: LaneScene, plan: _Plan, set_speed: float
+                ) -> tuple[list[_Want], Neighbour | None]:
+        """The changes wanted from the kept lane, in order of preference, and the lead
+        that holds the ego back (None if it does not)."""
+        lc = self.params.lane_change
+        c = plan.lane
+        v_here, lead = self._lane_speed(sc, c, set_speed)
+        wants: list[_Want] = []
+        blocked = lead is not None and v_here < set_speed - lc.block_margin_mps
+        stopped = lead is not None and abs(lead.speed_mps) < 0.5
+        if blocked and lead is not None:
+            end = float(sc.fn.s_m[lead.index] + 0.5 * sc.fn.length_m[lead.index]
+                        + lc.pass_after_m)
+            lid = sc.traffic.ids[lead.index]
+            for step, name in ((1, "left"), (-1, "right")):
+                v_there, _ = self._lane_speed(sc, c + step, set_speed)
+                if v_there - v_here > lc.incentive_mps:
+                    wants.append(_Want(c + step, end, f"pass {lid} on the {name}", stopped, lid))
+        slot = sc.slot(c)
+        horizon = max(sc.ego.speed_mps, 5.0) * 8.0 + 50.0
+        if slot is not None and slot.continues_m < horizon:
+            for step in ((-1 if c > 0 else 1), (1 if c > 0 else -1)):
+                wants.append(_Want(c + step, sc.ego.s_m + slot.continues_m,
+                                   f"lane ends in {slot.continues_m:.0f} m", True))
+        if c != 0 and not wants and self._passed(sc, plan):
+            home = c - int(math.copysign(1, c))
+            v_home, _ = self._lane_speed(sc, home, set_speed)
+            if v_home >= v_here - 0.5:
+                name = "right" if home < c else "left"
+                wants.append(_Want(home, sc.ego.s_m + max(sc.ego.speed_mps, 5.0) * 4.0,
+                                   f"return {name}", False))
+        return wants, (lead if blocked else None)
+
+    def _passed(self, sc: LaneScene, plan: _Plan) -> bool:
+        """The vehicle being passed is gone or ``pass_after_m`` behind the ego's rear."""
+        if not plan.passing or plan.passing not in sc.traffic.ids:
+            return True
+        j = sc.traffic.ids.index(plan.passing)
+        behind = sc.ego.s_m - (float(sc.fn.s_m[j]) + 0.5 * (float(sc.fn.length_m[j])
                                                             + self.ego.length_m))
-                     if idx >= 0 else math.inf)
-        if behind_by < self.gap.pass_after_m:
-            # The pass lane's centre where the ego is now (lanes shift at junctions).
-            return (held.side, f"passing {held.vehicle_id}",
-                    self._lane_offset_m(held.side, sc.lanes), idx)
-        self._passing = None
-        return side, reason, 0.0, -1
+        return behind >= self.params.lane_change.pass_after_m
 
-    def _select(self, sc: _Scene, side: int, blocker: int) -> npt.NDArray[np.intp]:
-        """Vehicles that get an ellipse: in the lanes the ego occupies or moves into,
-        within the detection distance, nearest first, at most max_obstacles; the
-        blocker always (a barrier on a car two lanes away only makes the plan sway)."""
+    # ------------------------------------------------------------------ speed
+    def _speed(self, sc: LaneScene, plan: _Plan, set_speed: float) -> tuple[float, int]:
+        """(speed target, index of the lead it follows or -1)."""
+        fp = self.params.follow
+        v = sc.ego.speed_mps
+        target, lead_index = set_speed, -1
+        lanes = [plan.lane] if not plan.changing else [plan.lane, plan.origin]
+        for rel in lanes:
+            lead = sc.lead(rel)
+            if lead is None:
+                continue
+            if rel == plan.origin and plan.changing and self._clears(sc, plan, lead):
+                continue
+            vt = follow_speed_mps(lead.gap_m, lead.speed_mps, v, set_speed, fp,
+                                  float(self._accel[lead.index]))
+            if vt < target:
+                target, lead_index = vt, lead.index
+        # Keeping a lane that ends: stop before its end unless a change takes the ego out.
+        slot = sc.slot(plan.lane)
+        if not plan.changing and slot is not None and math.isfinite(slot.continues_m):
+            target = min(target, follow_speed_mps(slot.continues_m - 5.0, 0.0, v, set_speed, fp))
+        return target, lead_index
+
+    def _clears(self, sc: LaneScene, plan: _Plan, lead: Neighbour) -> bool:
+        """During a change: will the ego be out of the origin lane before it reaches the
+        origin lane's lead? (Then that lead does not lower the speed target.)"""
+        start, goal = sc.offset_m(plan.origin), sc.offset_m(plan.lane)
+        width = sc.lanes[plan.origin].width_m if plan.origin in sc.lanes else self.lane_width_m
+        clear_at = 0.5 * (width + self.ego.width_m)
+        left = max(clear_at - abs(sc.ego.lat_m - start), 0.0)
+        t_lateral = left / _LANE_CHANGE_RATE_MPS
+        closing = sc.ego.speed_mps - lead.speed_mps
+        if closing <= 0.1:
+            return True
+        t_reach = max(lead.gap_m - 1.0, 0.0) / closing
+        return bool(t_reach > t_lateral and abs(goal - start) > 0.0)
+
+    # ------------------------------------------------------------------ obstacles
+    @staticmethod
+    def _side(plan: _Plan, follow: bool) -> int:
+        if plan.changing:
+            return SIDE_LEFT if plan.lane > plan.origin else SIDE_RIGHT
+        if follow:
+            return SIDE_FOLLOW
+        if plan.lane != 0:
+            return SIDE_LEFT if plan.lane > 0 else SIDE_RIGHT
+        return SIDE_NONE
+
+    def _select(self, sc: LaneScene, plan: _Plan, lead: int) -> IntpArray:
+        """Vehicles that get an ellipse (module docstring, item 4), nearest first."""
         pol = self.policy
-        dist = np.hypot(sc.ds, sc.fn.y_m - sc.ego.lat_m)
-        lanes_of_interest = {0, int(np.rint(sc.ego.lat_m / self.lane_width_m))}
-        if side in (SIDE_LEFT, SIDE_RIGHT):
-            lanes_of_interest.add(side)
-        in_lanes = sc.lane_rel == 0
-        for lane in lanes_of_interest:
-            in_lanes |= sc.lane_rel == lane
-        relevant = (dist <= pol.detection_distance_m) & (sc.ds >= -pol.rear_range_m) & in_lanes
+        if sc.traffic.count == 0 or pol.max_obstacles == 0:
+            return np.zeros(0, dtype=np.intp)
+        lanes = sc.lanes_occupied() | {plan.lane, plan.origin}
+        ds = sc.ds_m
+        dist = np.hypot(ds, sc.fn.y_m - sc.ego.lat_m)
+        in_lanes = np.isin(sc.rel_lane, np.array(sorted(lanes)))
+        relevant = (dist <= pol.detection_distance_m) & (ds >= -pol.rear_range_m) & in_lanes
+        # A car behind in the lane the ego keeps (or leaves) is its follower's business:
+        # as an ellipse it only pushes the ego forward and, squeezed against the lead's,
+        # sideways out of its lane. Behind the ego only the lane moved into counts.
+        home_lane = plan.origin if plan.changing else plan.lane
+        relevant &= ~((sc.rel_lane == home_lane) & (ds < 0.0))
         if not pol.moving_obstacles:
             relevant &= sc.traffic.stalled
-        order = np.flatnonzero(relevant)
-        order = order[np.argsort(dist[order])][: pol.max_obstacles]
-        if blocker >= 0 and blocker not in order and order.size:
-            order[-1] = blocker
-        return order
+        leads = {n.index for r in lanes if (n := sc.lead(r)) is not None}
+        if lead >= 0:
+            leads.add(lead)
+        idx = np.flatnonzero(relevant)
+        key = [(0 if i in leads else 1, float(dist[i])) for i in idx]
+        order = [int(idx[k]) for k in sorted(range(len(idx)), key=key.__getitem__)]
+        return np.array(order[: pol.max_obstacles], dtype=np.intp)
 
-    def _ellipses(self, sc: _Scene, order: npt.NDArray[np.intp], side: int,
-                  blocker: int) -> Obstacles:
+    def _ellipses(self, sc: LaneScene, order: IntpArray, plan: _Plan, side: int,
+                  follow_lead: int) -> Obstacles:
         fn = sc.fn
         axes = np.array([ellipse_semi_axes(fn.length_m[i], fn.width_m[i], self.ego.length_m,
                                            self.ego.width_m, self.policy)
                          for i in order]).reshape(-1, 2)
-        semi_a, semi_b = axes[:, 0], axes[:, 1]
+        semi_a, semi_b = axes[:, 0].copy(), axes[:, 1].copy()
         y = fn.y_m[order].copy()
         if side in (SIDE_LEFT, SIDE_RIGHT):
-            y[order == blocker] = offset_centre_y(float(fn.y_m[blocker]), side, self.policy)
-        elif side == SIDE_FOLLOW:
-            # Wide enough that no lateral way round exists within the carriageway.
-            semi_b = np.where(order == blocker, semi_b + 1.5 * self.lane_width_m, semi_b)
+            # Shift the vehicles of the lane being left away from the pass side.
+            origin = plan.origin if plan.changing else 0
+            for k, i in enumerate(order):
+                if sc.rel_lane[i] == origin and (plan.changing or plan.lane != 0):
+                    y[k] = offset_centre_y(float(fn.y_m[i]), side, self.policy)
+        for k, i in enumerate(order):
+            if i == follow_lead:
+                # A wall across the carriageway: no lateral way round, and (B >> the
+                # ego's offset) no lateral gradient that would push the ego sideways
+                # while it waits at standstill distance (dc/dy = 2 dy / B²).
+                semi_b[k] = max(semi_b[k], _FOLLOW_WALL_LANES * self.lane_width_m)
+            semi_a[k], semi_b[k] = _leave_ego_outside(
+                float(sc.ego.s_m - fn.s_m[i]), float(sc.ego.lat_m - y[k]), float(semi_a[k]),
+                float(semi_b[k]), 0.5 * float(fn.length_m[i] + self.ego.length_m))
         return Obstacles(s_m=fn.s_m[order].copy(), y_m=y, speed_s_mps=fn.v_s_mps[order].copy(),
                          speed_y_mps=fn.v_y_mps[order].copy(), semi_a_m=semi_a,
                          semi_b_m=semi_b)
 
-    def _lane_offset_m(self, side: int, lanes: LaneContext) -> float:
-        """Offset [m] of the neighbour lane's centre on ``side`` from the reference path:
-        the lane context's own where known, else the half widths of the two lanes."""
-        return lanes.offset_of(lanes.reference_index + side, self.lane_width_m)
+
+def _leave_ego_outside(ds_m: float, dy_m: float, semi_a_m: float, semi_b_m: float,
+                       min_a_m: float) -> tuple[float, float]:
+    """Semi-axes (A, B) such that the ego's CG at (ds, dy) from the centre is outside
+    (ellipse value >= 0.05): where the barrier is undefined the planner fails. The axis
+    along which the ego is deeper shrinks (A: following a car at standstill distance;
+    B: a car alongside in the next lane), A not below the box-sum half length."""
+    along, across = (ds_m / semi_a_m) ** 2, (dy_m / semi_b_m) ** 2
+    if along + across >= 1.05:
+        return semi_a_m, semi_b_m
+    if along >= across and across < 1.0:
+        a = abs(ds_m) / math.sqrt(max(1.05 - across, 1e-3))
+        return max(a, min_a_m), semi_b_m
+    b = abs(dy_m) / math.sqrt(max(1.05 - along, 1e-3))
+    return semi_a_m, max(b, 0.5)
+
+
+__all__ = ["BehaviourParams", "EgoShape", "LaneBehaviour"]

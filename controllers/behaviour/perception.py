@@ -1,16 +1,30 @@
-"""Perception: other vehicles projected onto the reference path (Frenet frame)."""
+"""Perception: other vehicles on the reference path, in lanes relative to the ego's.
+
+Every vehicle gets Frenet coordinates along the reference path (s, y, and its velocity
+along and across it) and a *relative lane*: 0 is the reference lane (the lane the catalog
+asked for, followed along the route), +1 the lane to its left, -1 to its right, and so on.
+Where the world reports a vehicle's road and lane index, and the lane context knows the
+reference lane's index on that road, the relative lane is their difference (SUMO's own
+lane assignment, exact across index shifts); elsewhere (inside junctions, in the
+plant-only simulator) it is the lane whose centre is nearest the vehicle's offset.
+
+:class:`LaneScene` then answers the behaviour's questions per relative lane: the lead
+(nearest vehicle ahead) and the follower (nearest behind), with bumper gaps.
+"""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from controllers.behaviour.types import EgoFrenet, Traffic
+from controllers.behaviour.types import EgoFrenet, LaneContext, LaneSlot, Traffic
 from controllers.path.frenet import FrenetPath
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True)
@@ -44,3 +58,135 @@ def project_traffic(path: FrenetPath, traffic: Traffic, ego: EgoFrenet) -> Frene
     rel = traffic.heading_rad - gamma
     return FrenetTraffic(s, y, traffic.speed_mps * np.cos(rel), traffic.speed_mps * np.sin(rel),
                          traffic.length_m, traffic.width_m)
+
+
+@dataclass(frozen=True)
+class Neighbour:
+    """A vehicle next to the ego in one lane: its index in the traffic arrays, bumper gap
+    [m] (>= 0 ahead: its rear to the ego's front; behind: the ego's rear to its front) and
+    speed along the path [m/s]."""
+
+    index: int
+    gap_m: float
+    speed_mps: float
+
+
+@dataclass(frozen=True)
+class LaneScene:
+    """One step's view: the ego, the vehicles in Frenet coordinates with their relative
+    lanes, the lane context and the lanes by relative number (``lanes[rel]``)."""
+
+    ego: EgoFrenet
+    ego_length_m: float
+    ego_width_m: float
+    traffic: Traffic
+    fn: FrenetTraffic
+    rel_lane: IntArray
+    context: LaneContext
+    lanes: dict[int, LaneSlot]
+    lane_width_m: float
+
+    @property
+    def ds_m(self) -> FloatArray:
+        return self.fn.s_m - self.ego.s_m
+
+    def offset_m(self, rel: int) -> float:
+        """Centre of relative lane ``rel`` from the reference lane's centre [m, left +]:
+        lanes shift together where netconvert moves them, so this is the lane spacing."""
+        ref = self.context.reference_index
+        slots = self.context.slots
+        index = self._index_of(rel)
+        if index is not None and index in slots and ref in slots:
+            a, b = slots[index].offset_m, slots[ref].offset_m
+            if math.isfinite(a) and math.isfinite(b):
+                return a - b
+        return self.context.offset_of(ref + rel, self.lane_width_m) \
+            - self.context.offset_of(ref, self.lane_width_m)
+
+    def _index_of(self, rel: int) -> int | None:
+        order = sorted(self.context.slots)
+        ref = self.context.reference_index
+        if ref not in order:
+            return None
+        k = order.index(ref) + rel
+        return order[k] if 0 <= k < len(order) else None
+
+    def slot(self, rel: int) -> LaneSlot | None:
+        index = self._index_of(rel)
+        return self.context.slots.get(index) if index is not None else None
+
+    @property
+    def ego_lane(self) -> int:
+        """The relative lane whose centre is nearest the ego's CG."""
+        return self.lane_at(self.ego.lat_m)
+
+    def lane_at(self, y_m: float) -> int:
+        rels = [r for r in self.lanes]
+        if not rels:
+            return int(round(y_m / self.lane_width_m))
+        return min(rels, key=lambda r: abs(y_m - self.offset_m(r)))
+
+    def lanes_occupied(self) -> set[int]:
+        """Relative lanes the ego's box overlaps laterally (straight box, CG offset)."""
+        half = 0.5 * self.ego_width_m
+        out = set()
+        for r in self.lanes:
+            c = self.offset_m(r)
+            w = self.lanes[r].width_m
+            if abs(self.ego.lat_m - c) < 0.5 * w + half:
+                out.add(r)
+        return out or {self.ego_lane}
+
+    def lead(self, rel: int) -> Neighbour | None:
+        """The nearest vehicle ahead in relative lane ``rel`` (its rear ahead of the ego's
+        CG)."""
+        return self._nearest(rel, ahead=True)
+
+    def follower(self, rel: int) -> Neighbour | None:
+        """The nearest vehicle behind in relative lane ``rel``."""
+        return self._nearest(rel, ahead=False)
+
+    def _nearest(self, rel: int, ahead: bool) -> Neighbour | None:
+        if self.traffic.count == 0:
+            return None
+        ds = self.ds_m
+        half = 0.5 * (self.fn.length_m + self.ego_length_m)
+        in_lane = self.rel_lane == rel
+        mask = in_lane & (ds > 0.0) if ahead else in_lane & (ds <= 0.0)
+        if not np.any(mask):
+            return None
+        idx = np.flatnonzero(mask)
+        j = int(idx[np.argmin(ds[idx])] if ahead else idx[np.argmax(ds[idx])])
+        gap = (ds[j] - half[j]) if ahead else (-ds[j] - half[j])
+        return Neighbour(j, float(gap), float(self.fn.v_s_mps[j]))
+
+
+def relative_lanes(traffic: Traffic, fn: FrenetTraffic, context: LaneContext,
+                   lane_width_m: float) -> IntArray:
+    """Relative lane of every vehicle (module docstring)."""
+    n = traffic.count
+    out = np.zeros(n, dtype=np.int64)
+    if n == 0:
+        return out
+    order = sorted(context.slots)
+    ref = context.reference_index
+    ref_ok = ref in context.slots and math.isfinite(context.slots[ref].offset_m)
+    offsets = np.array([context.slots[i].offset_m for i in order], dtype=np.float64)
+    geometric = bool(order) and ref_ok and bool(np.all(np.isfinite(offsets)))
+    by_road = context.reference_index_by_road
+    for j in range(n):
+        road = traffic.road_id[j]
+        lane = int(traffic.lane_index[j])
+        if road in by_road and lane >= 0:
+            out[j] = lane - by_road[road]
+        elif geometric:
+            k = int(np.argmin(np.abs(fn.y_m[j] - offsets)))
+            extra = 0.0
+            if fn.y_m[j] > offsets[-1] + 0.5 * lane_width_m:
+                extra = round((fn.y_m[j] - offsets[-1]) / lane_width_m)
+            elif fn.y_m[j] < offsets[0] - 0.5 * lane_width_m:
+                extra = round((fn.y_m[j] - offsets[0]) / lane_width_m)
+            out[j] = k - order.index(ref) + int(extra)
+        else:
+            out[j] = int(round(fn.y_m[j] / lane_width_m))
+    return out

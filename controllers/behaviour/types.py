@@ -98,10 +98,13 @@ class LaneSlot:
 @dataclass(frozen=True)
 class LaneContext:
     """The lanes at the ego's position, by lane index, and the index of the lane the
-    reference path follows there (``reference_index``)."""
+    reference path follows there (``reference_index``); ``reference_index_by_road``
+    gives that index on every road (edge) of the route near the ego, so that a vehicle
+    whose road and lane index the world reports is placed in its lane exactly."""
 
     slots: Mapping[int, LaneSlot]
     reference_index: int
+    reference_index_by_road: Mapping[str, int] = field(default_factory=dict)
 
     def slot(self, index: int) -> LaneSlot | None:
         return self.slots.get(index)
@@ -131,13 +134,14 @@ class LaneContext:
 @dataclass(frozen=True)
 class EgoFrenet:
     """The ego as the behaviour sees it: CG in the world [m] and on the reference path
-    (s_m, y_m) [m], speed [m/s]."""
+    (s_m, lat_m) [m], speed [m/s], and the run's time [s] (decisions hold for a while)."""
 
     x_m: float
     y_m: float
     s_m: float
     lat_m: float
     speed_mps: float
+    t_s: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -244,7 +244,7 @@ def simulate(controller: Controller, path_xy: np.ndarray,
             scripted.t_s, scripted.frenet_vehicles = t, vehs
         lane_ctx = (lanes(t) if callable(lanes) else lanes) if lanes is not None \
             else LaneContext({}, 0)
-        ego = EgoFrenet(float(st[0]), float(st[1]), s_cg, y_cg, math.hypot(st[3], st[4]))
+        ego = EgoFrenet(float(st[0]), float(st[1]), s_cg, y_cg, math.hypot(st[3], st[4]), t)
         decision = behaviour.decide(ego, traffic_from_frenet(path, vehs), lane_ctx, vt)
         cmd = controller.step(Observation(
             t_s=t, state=st.copy(), target_speed_mps=decision.target_speed_mps,

@@ -13,9 +13,11 @@ Per control period (:meth:`TwoLoopController.step`):
    target speed, yr and Cy;
 5. inner preview tracker (:mod:`controllers.two_loop.tracker`): conversion (13)(14),
    preview and corrections (38)-(41);
-6. a non-finite command (never expected) is replaced by lane-keeping braking
-   (heading K_Ps wrap(gamma - psi), torque -m R fallback_decel_mps2) and flagged as
-   a fallback.
+6. minimal-risk manoeuvre (:mod:`controllers.two_loop.fallback`): when the planner
+   fails (or a command is non-finite), a committed, jerk-limited braking plan in the
+   lane replaces the planner's for at least its hold time; the planner then restarts at
+   the measured state. A non-finite command (never expected) is replaced by lane-keeping
+   braking (heading K_Ps wrap(gamma - psi), torque -m R fallback_decel_mps2).
 
 Its output: :class:`controllers.protocol.Command` with :class:`TwoLoopDiagnostics`,
 the plan's positions ``plan_xy_m`` (N+1, 2) and the preview ``preview_xy_m``
@@ -36,6 +38,7 @@ from controllers.params import to_dict
 from controllers.path.frenet import FrenetPath, _points_many, path_gamma, path_project_local
 from controllers.protocol import Command, Observation, ScenarioContext, StepDiagnostics
 from controllers.two_loop.diagnostics import TwoLoopDiagnostics
+from controllers.two_loop.fallback import MinimalRiskManeuver
 from controllers.two_loop.lateral import LateralReferenceShaper
 from controllers.two_loop.launch import LaunchSupervisor
 from controllers.two_loop.outer.protocol import OuterPlan, OuterPlanner, PlannerFactory
@@ -108,6 +111,7 @@ class TwoLoopController:
         self.lateral = LateralReferenceShaper(p.lateral)
         self.launch = LaunchSupervisor(p.launch, p.outer, p.policy)
         self.tracker = PreviewTracker(p.inner)
+        self.mrm = MinimalRiskManeuver(p.fallback, p.outer.target_accel_mps2)
         self.path: FrenetPath | None = None
         self.planner: OuterPlanner | None = None
         self.plan: OuterPlan | None = None
@@ -116,6 +120,7 @@ class TwoLoopController:
         self._s_hint = 0.0
         self._t_prev: float | None = None
         self._t_first = 0.0
+        self._last_torque = 0.0
 
     @property
     def launch_count(self) -> int:
@@ -138,6 +143,8 @@ class TwoLoopController:
         self._t_prev = None
         self.plan = None
         self.lateral.reset()
+        self.mrm.reset()
+        self._last_torque = 0.0
         self.launch.reset(self.path, context.vehicle)
         self.tracker.reset(self.path, context.vehicle, p.outer.n_stages, st)
         meta, coef, knots = self.path.tables()
@@ -178,30 +185,44 @@ class TwoLoopController:
                                     self.planner.horizon_growth(t_s - self._t_first))
         c_y = self.lateral.weight(self.params.outer.c_y)
         target = float(observation.target_speed_mps)
-        steer_l, torque_l, lw = self._launch_step(observation, st, x0, speed, target, dt)
+        if self.mrm.due(t_s):  # back to the planner, restarted at the measured state
+            self.mrm.release(t_s)
+            self._planner().restart(x0, self.mrm.ramp.speed_mps, self.mrm.ramp.ramp_accel_mps2)
+        steer_l, torque_l, lw = (0.0, 0.0, 0.0) if self.mrm.active else \
+            self._launch_step(observation, st, x0, speed, target, dt)
+        updates = 0
         if self.launch.active:
             plan = self.launch.plan(x0)
             t_inner0 = time.perf_counter()
             self.tracker.hold(st)
             out = TrackerOutput(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
             steer, torque = steer_l, torque_l
-            updates = 0
         else:
-            plan = self.planner.update(observation.t_s, x0, observation.obstacles, target,
-                                       self._dt, lateral_reference_m=y_ref, lateral_weight=c_y)
+            solved = None if self.mrm.active else self.planner.update(
+                observation.t_s, x0, observation.obstacles, target, self._dt,
+                lateral_reference_m=y_ref, lateral_weight=c_y)
+            if solved is not None and solved.fallback:
+                self.mrm.engage(t_s, speed, self._last_torque / (self._vp[0] * self._vp[6]))
+            if solved is None or self.mrm.active:
+                plan = self._mrm_plan(x0, y_ref, target, dt)
+            else:
+                plan = solved
+                updates = self.planner.updates_per_period
             t_inner0 = time.perf_counter()
             out = self.tracker.track(st, plan, dt)
             steer, torque = out.steer_rad, out.torque_nm
             if lw > 0.0:  # hand-over blend from the launch command to the two-loop one
                 steer = lw * steer_l + (1.0 - lw) * steer
                 torque = lw * torque_l + (1.0 - lw) * torque
-            updates = self.planner.updates_per_period
         self.plan = plan
-        fallback = bool(plan.fallback)
+        fallback = bool(plan.fallback) or self.mrm.active
         if not (math.isfinite(steer) and math.isfinite(torque)):
             fallback = True
             steer, torque = self._brake_along_lane(st, x0)
             out = TrackerOutput(steer, torque, out.preview_err_t_m, out.preview_err_n_m, 0.0, 0.0)
+            if not self.mrm.active:
+                self.mrm.engage(t_s, speed, -self.params.outer.fallback_decel_mps2)
+        self._last_torque = float(torque)
         self.launch.observe_torque(torque)
         t_end = time.perf_counter()
         self._t_prev = observation.t_s
@@ -218,7 +239,8 @@ class TwoLoopController:
             outer_updates=updates, lateral_ref_m=y_ref,
             lateral_ref_rate_mps=self.lateral.rate_mps, lateral_weight=c_y,
             launch=self.launch.active, launch_weight=lw,
-            launch_ramp_speed_mps=self.launch.ramp.speed_mps)
+            launch_ramp_speed_mps=self.launch.ramp.speed_mps, mrm=self.mrm.active,
+            mrm_hold_s=self.mrm.hold_s)
         return Command(steer_rad=float(steer), torque_nm=float(torque), diagnostics=diag,
                        plan_xy_m=plan_xy, preview_xy_m=self.tracker.preview_xy_m.copy())
 
@@ -243,6 +265,10 @@ class TwoLoopController:
         steer, torque = launch.command(st, x0, speed, target, self.lateral.raw_m,
                                        observation.obstacles, int(observation.pass_side), dt)
         return steer, torque, lw
+
+    def _mrm_plan(self, x0: np.ndarray, y_ref: float, target: float, dt: float) -> OuterPlan:
+        o = self.params.outer
+        return self.mrm.plan(self._path(), x0, y_ref, target, dt, o.horizon_s, o.n_stages)
 
     def _planner(self) -> OuterPlanner:
         if self.planner is None:

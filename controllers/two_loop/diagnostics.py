@@ -24,7 +24,9 @@ class TwoLoopDiagnostics(StepDiagnostics):
     lateral_weight: Cy of this period [1/(m² s)];
     launch: the launch law drives; launch_weight: its share of the command [-] (1 in
         launch, easing to 0 after the hand-over); launch_ramp_speed_mps: the launch
-        ramp's speed [m/s].
+        ramp's speed [m/s];
+    mrm: the minimal-risk manoeuvre drives (the planner failed); mrm_hold_s: its current
+        hold [s] (doubled after repeated failures).
     """
 
     steer_outer_rad: float = math.nan
@@ -41,3 +43,5 @@ class TwoLoopDiagnostics(StepDiagnostics):
     launch: bool = False
     launch_weight: float = math.nan
     launch_ramp_speed_mps: float = math.nan
+    mrm: bool = False
+    mrm_hold_s: float = math.nan

@@ -1,7 +1,7 @@
 """The two-loop controller's parameters: one section per stage, and the catalog aliases.
 
 ``TwoLoopParams(outer=CgmresParams, inner=PreviewParams, lateral=LateralRefParams,
-launch=LaunchParams, policy=ObstaclePolicy)`` is ``two_loop``;
+launch=LaunchParams, policy=ObstaclePolicy, fallback=FallbackParams)`` is ``two_loop``;
 :class:`IpoptNmpcParams` is the same with ``outer=IpoptParams`` (``ipopt_nmpc``). A
 catalog sets them with nested tables (``controller.outer.c_y``) through
 :func:`controllers.params.build`; the flat names of the former flat parameter class
@@ -17,6 +17,7 @@ from typing import Any
 from controllers.behaviour.types import ObstaclePolicy
 from controllers.params import ParamError, build, section
 from controllers.protocol import ConfigError
+from controllers.two_loop.fallback import FallbackParams
 from controllers.two_loop.lateral import LateralRefParams
 from controllers.two_loop.launch import LaunchParams
 from controllers.two_loop.outer.params import CgmresParams, IpoptParams, OcpParams
@@ -34,6 +35,8 @@ class TwoLoopParamsBase:
     launch: LaunchParams = section(LaunchParams, "standstill launch and hand-over")
     policy: ObstaclePolicy = section(ObstaclePolicy, "other vehicles -> ellipses (K slots = "
                                      "max_obstacles)")
+    fallback: FallbackParams = section(FallbackParams, "minimal-risk manoeuvre when the "
+                                       "planner fails")
 
     def __post_init__(self) -> None:
         horizon = self.outer.horizon_s

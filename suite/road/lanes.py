@@ -100,4 +100,4 @@ class LaneContextMap:
         if ref is None:  # outside the reference's window: the lane nearest the path
             known = {i: abs(sl.offset_m) for i, sl in slots.items() if math.isfinite(sl.offset_m)}
             ref = min(known, key=known.__getitem__) if known else min(slots)
-        return LaneContext(slots, ref)
+        return LaneContext(slots, ref, self._reference.lane_index_by_edge)

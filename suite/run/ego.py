@@ -36,10 +36,10 @@ class EgoState:
     def speed_mps(self) -> float:
         return math.hypot(float(self.state[3]), float(self.state[4]))
 
-    @property
-    def frenet(self) -> EgoFrenet:
+    def frenet(self, t_s: float) -> EgoFrenet:
+        """The ego as the behaviour sees it at run time ``t_s``."""
         return EgoFrenet(float(self.state[0]), float(self.state[1]), self.s_m, self.lat_m,
-                         self.speed_mps)
+                         self.speed_mps, t_s)
 
 
 class EgoProjector:

@@ -56,10 +56,12 @@ def run_loop(stages: Stages, n_steps: int) -> str:
     ego, scene = stages.dynamics.start()
     for step in range(n_steps):
         t0 = clock()
+        t_s = step * stages.step_s
         lanes = stages.lanes.at(ego.s_m)
-        decision = stages.behaviour.decide(ego.frenet, scene.traffic, lanes, stages.set_speed_mps)
+        decision = stages.behaviour.decide(ego.frenet(t_s), scene.traffic, lanes,
+                                           stages.set_speed_mps)
         t1 = clock()
-        command = stages.controller.step(observe(step * stages.step_s, ego, decision))
+        command = stages.controller.step(observe(t_s, ego, decision))
         t2 = clock()
         after, scene = stages.dynamics.advance(command)
         t3 = clock()

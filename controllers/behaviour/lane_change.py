@@ -1,0 +1,143 @@
+"""Lane changes: whether a move into a neighbour lane is wanted, and whether it is safe.
+
+Safety (gap acceptance, a MOBIL-style criterion): with the ego at v, the target lane's
+lead at bumper gap g_f and speed v_f, its follower at gap g_r and speed v_r,
+
+* the target lane admits the ego (passenger cars, or a shoulder the scenario allows) and
+  continues beyond the manoeuvre;
+* no (near-)stationary vehicle in it over the stretch the manoeuvre sweeps;
+* front: g_f >= s0 + T_f v, and closing on the lead (v > v_f) needs at most b_safe to
+  match its speed before s0: (v - v_f)² / (2 (g_f - s0)) <= b_safe;
+* rear: g_r >= s0 + T_r v_r, and the new follower closing on the ego (v_r > v) needs at
+  most b_safe: (v_r - v)² / (2 (g_r - s0)) <= b_safe (MOBIL's bound on the new
+  follower's braking).
+
+Before the commit point a manoeuvre is re-checked every step with ``abort_decel_mps2``
+(> b_safe: hysteresis, so that a marginal gap does not flip the decision) and aborted
+if that fails. Incentive: a change is wanted when the achievable speed in the target lane
+(the car-following set-point behind its lead) beats the current lane's by
+``incentive_mps`` (passing), or to return to the ego's home lane when that lane is as
+fast as the current one (keep right / back to the asked lane).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from controllers.behaviour.perception import LaneScene, Neighbour
+
+
+@dataclass(frozen=True)
+class LaneChangeParams:
+    """Gap acceptance and decision timing (units in the names).
+
+    front_time_gap_s, rear_time_gap_s, standstill_m: minimum gaps to the target lane's
+    lead and follower; safe_decel_mps2: the braking a change may ask of the ego or of its
+    new follower; abort_decel_mps2: the same for aborting an ongoing change (> safe);
+    incentive_mps: speed gain that makes a pass worth it; commit_fraction: share of the
+    lateral move after which a change is no longer aborted; done_tolerance_m: lateral
+    distance to the target lane's centre at which a change is complete; hold_s: time a
+    lane is kept after a change before another one (unless the lane ahead is blocked
+    by a stopped vehicle); pass_after_m: how far beyond a passed vehicle's rear the ego
+    stays in the pass lane; lane_end_margin_m: a target lane must continue this much
+    beyond the manoeuvre; plan_horizon_s: how far ahead (at the ego's speed) a slower
+    vehicle counts as blocking; block_margin_mps: how much slower it must be.
+    """
+
+    front_time_gap_s: float = 0.6
+    rear_time_gap_s: float = 0.5
+    standstill_m: float = 4.0
+    safe_decel_mps2: float = 2.0
+    abort_decel_mps2: float = 3.5
+    incentive_mps: float = 2.0
+    commit_fraction: float = 0.5
+    done_tolerance_m: float = 0.3
+    hold_s: float = 3.0
+    pass_after_m: float = 15.0
+    lane_end_margin_m: float = 20.0
+    plan_horizon_s: float = 6.0
+    block_margin_mps: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("front_time_gap_s", "rear_time_gap_s", "standstill_m", "safe_decel_mps2",
+                     "abort_decel_mps2", "incentive_mps", "done_tolerance_m", "hold_s",
+                     "pass_after_m", "lane_end_margin_m", "plan_horizon_s",
+                     "block_margin_mps"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v)
+                                           and v >= 0):
+                raise ValueError(f"LaneChangeParams.{name} must be a finite number >= 0, "
+                                 f"got {v!r}")
+        if not 0.0 < self.commit_fraction < 1.0:
+            raise ValueError("LaneChangeParams.commit_fraction must be in (0, 1), "
+                             f"got {self.commit_fraction!r}")
+        if self.abort_decel_mps2 < self.safe_decel_mps2:
+            raise ValueError("LaneChangeParams.abort_decel_mps2 must be >= safe_decel_mps2")
+
+
+def _decel_needed(closing_mps: float, gap_m: float, standstill_m: float) -> float:
+    """Constant deceleration [m/s²] that removes ``closing_mps`` within the gap beyond s0."""
+    if closing_mps <= 0.0:
+        return 0.0
+    room = gap_m - standstill_m
+    return math.inf if room <= 0.0 else closing_mps**2 / (2.0 * room)
+
+
+def lane_change_safety(scene: LaneScene, target: int, end_s_m: float, p: LaneChangeParams,
+                       decel_bound_mps2: float, allow_shoulder: bool) -> tuple[bool, str]:
+    """(safe, why) for moving into relative lane ``target`` for a manoeuvre that ends at
+    path position ``end_s_m`` (module docstring); ``decel_bound_mps2`` is b_safe, or the
+    abort bound when re-checking a change under way."""
+    name = _side_name(target - scene.ego_lane)
+    slot = scene.slot(target)
+    if slot is None:
+        return False, f"no {name} lane"
+    if slot.is_shoulder and not allow_shoulder:
+        return False, f"{name} is a shoulder (not allowed)"
+    if not slot.allows_passenger and not slot.is_shoulder:
+        return False, f"{name} lane bars passenger cars"
+    kind = "shoulder" if slot.is_shoulder else "lane"
+    need = end_s_m - scene.ego.s_m + p.lane_end_margin_m
+    if slot.continues_m < need:
+        return False, f"{name} {kind} ends in {slot.continues_m:.0f} m"
+    v = scene.ego.speed_mps
+    in_lane = scene.rel_lane == target
+    stationary = in_lane & (np.abs(scene.fn.v_s_mps) < 0.5)
+    reach = 0.5 * (scene.fn.length_m + scene.ego_length_m) + p.standstill_m
+    ds = scene.ds_m
+    if np.any(stationary & (ds > -reach) & (ds < end_s_m - scene.ego.s_m + reach)):
+        return False, f"{name} {kind} blocked by a stopped vehicle"
+    lead = scene.lead(target)
+    if lead is not None:
+        why = _front_problem(lead, v, p, decel_bound_mps2)
+        if why:
+            return False, f"{name} gap too short ({why})"
+    rear = scene.follower(target)
+    if rear is not None:
+        why = _rear_problem(rear, v, p, decel_bound_mps2)
+        if why:
+            return False, f"{name} gap too short ({why})"
+    return True, f"{name} {kind} free"
+
+
+def _front_problem(lead: Neighbour, v: float, p: LaneChangeParams, bound: float) -> str:
+    if lead.gap_m < p.standstill_m + p.front_time_gap_s * v:
+        return f"{lead.gap_m:.0f} m to the car ahead"
+    if _decel_needed(v - lead.speed_mps, lead.gap_m, p.standstill_m) > bound:
+        return "closing on the car ahead"
+    return ""
+
+
+def _rear_problem(rear: Neighbour, v: float, p: LaneChangeParams, bound: float) -> str:
+    if rear.gap_m < p.standstill_m + p.rear_time_gap_s * max(rear.speed_mps, 0.0):
+        return f"{rear.gap_m:.0f} m to the car behind"
+    if _decel_needed(rear.speed_mps - v, rear.gap_m, p.standstill_m) > bound:
+        return "a faster car closing from behind"
+    return ""
+
+
+def _side_name(step: int) -> str:
+    return "left" if step > 0 else ("right" if step < 0 else "own")

@@ -1,0 +1,114 @@
+"""Minimal-risk manoeuvre: what drives when the outer planner fails.
+
+When the planner reports a failure (C/GMRES residual above its bound or non-finite,
+Ipopt unsuccessful) or a command is non-finite, the controller stops using the planner
+and follows this manoeuvre instead, committed for at least ``hold_s``:
+
+* speed: a jerk-limited ramp (:class:`TargetSpeedRamp`, deceleration ``decel_mps2``,
+  jerk ``jerk_mps3``) starting at the *measured* speed and acceleration, toward the
+  behaviour's speed target (which follows the lead car) but never above the speed at
+  engagement: it brakes smoothly, it never speeds up;
+* path: along the reference at the shaped lateral reference (the lane the behaviour
+  holds), so the preview tracker keeps the car in its lane.
+
+Re-engagement: after ``hold_s`` the planner restarts at the measured state (its growing
+horizon makes the first solution exact) and resumes. Hysteresis: a failure within
+``rearm_s`` of re-engaging doubles the next hold (up to ``max_hold_s``); a clean
+``rearm_s`` resets it. This replaces alternating full drive and full braking (a restart
+that fails again at once) with one committed, comfortable braking manoeuvre.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from controllers.params import check_leaves, check_range, param
+from controllers.path.frenet import FrenetPath
+from controllers.two_loop.outer.ocp import TargetSpeedRamp
+from controllers.two_loop.outer.protocol import OuterPlan
+
+
+@dataclass(frozen=True)
+class FallbackParams:
+    """Minimal-risk manoeuvre (module docstring)."""
+
+    decel_mps2: float = param(3.0, "m/s²", "deceleration of the minimal-risk braking")
+    jerk_mps3: float = param(3.0, "m/s³", "jerk bound of its braking onset")
+    hold_s: float = param(2.0, "s", "shortest manoeuvre before the planner re-engages")
+    max_hold_s: float = param(8.0, "s", "longest hold after repeated failures")
+    rearm_s: float = param(4.0, "s", "a failure this soon after re-engaging doubles the hold")
+
+    def __post_init__(self) -> None:
+        check_leaves(self)
+        for name in ("decel_mps2", "jerk_mps3", "hold_s", "max_hold_s", "rearm_s"):
+            check_range(self, name, gt=0.0)
+        check_range(self, "max_hold_s", ge=self.hold_s)
+
+
+class MinimalRiskManeuver:
+    """``engage`` on a failure; while ``active``, :meth:`plan` is what the tracker
+    follows; :meth:`due` says when the planner may take over again (then
+    :meth:`release`)."""
+
+    def __init__(self, params: FallbackParams, accel_mps2: float) -> None:
+        self.params = params
+        self.ramp = TargetSpeedRamp(accel_mps2, params.decel_mps2, params.jerk_mps3)
+        self.active = False
+        self.count = 0
+        self._since = -math.inf
+        self._released = -math.inf
+        self._hold = params.hold_s
+        self._cap = 0.0
+
+    def reset(self) -> None:
+        self.active = False
+        self.count = 0
+        self._since = -math.inf
+        self._released = -math.inf
+        self._hold = self.params.hold_s
+
+    def engage(self, t_s: float, speed_mps: float, accel_mps2: float) -> None:
+        """A failure at ``t_s``: brake from the measured speed and acceleration."""
+        p = self.params
+        if t_s - self._released < p.rearm_s:
+            self._hold = min(2.0 * self._hold, p.max_hold_s)
+        else:
+            self._hold = p.hold_s
+        self.active = True
+        self.count += 1
+        self._since = t_s
+        self._cap = max(speed_mps, 0.0)
+        self.ramp.reset(max(speed_mps, 0.0))
+        self.ramp.ramp_accel_mps2 = min(max(accel_mps2, -p.decel_mps2), 0.0)
+
+    def due(self, t_s: float) -> bool:
+        return self.active and t_s - self._since >= self._hold
+
+    def release(self, t_s: float) -> None:
+        self.active = False
+        self._released = t_s
+
+    @property
+    def hold_s(self) -> float:
+        """The current hold (doubled after repeated failures)."""
+        return self._hold
+
+    def plan(self, path: FrenetPath, x0: np.ndarray, lateral_m: float, target_mps: float,
+             dt_s: float, horizon_s: float, n_stages: int) -> OuterPlan:
+        """Advance the ramp by ``dt_s`` toward min(target, speed at engagement) and give
+        the manoeuvre over the horizon: (s, y = lateral_m, gamma(s)) at N + 1 nodes."""
+        set_point = min(target_mps if math.isfinite(target_mps) else 0.0, self._cap)
+        v0 = self.ramp.update(max(set_point, 0.0), dt_s)
+        a0 = self.ramp.ramp_accel_mps2
+        tau = np.linspace(0.0, horizon_s, n_stages + 1)
+        v = np.maximum(v0 + a0 * tau, 0.0)
+        s = float(x0[0]) + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1])
+                                                              * np.diff(tau))])
+        y = np.full(n_stages + 1, lateral_m if math.isfinite(lateral_m) else float(x0[1]))
+        states = np.column_stack([s, y, path.gamma(s)])
+        return OuterPlan(stage_times_s=tau, states=states, speeds_mps=v[:-1].copy(),
+                         headings_rad=states[:-1, 2].copy(), residual=math.nan,
+                         fallback=True, guard_fired=0, solve_s=0.0)
