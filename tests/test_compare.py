@@ -93,7 +93,7 @@ def test_new_failure_and_fixed(base: Path, tmp_path: Path) -> None:
     assert result.new_failures == ["cruise_straight [ctrl_a]"]
     assert result.exit_code == 1
     row = result.of_kind("new_failure")[0]
-    assert "pass → fail" in row.note and "collision=1>0" in row.note
+    assert "pass → fail" in row.note and "at_fault_collisions=1>0" in row.note
     # the other direction: fixed, no regression
     back = compare_runs(new, base, tmp_path / "cmp_back")
     assert back.fixed == ["cruise_straight [ctrl_a]"]

@@ -29,7 +29,10 @@ def test_nuplan_defaults() -> None:
     assert c.max_abs_long_jerk_mps3 == 4.13
     assert c.max_abs_jerk_mps3 == 8.37
     assert c.min_ttc_s == 0.95
-    assert c.max_collision == 0.0 and c.max_offroad_s == 0.0
+    # collisions: the default is on the at-fault ones (nuPlan); any contact is off by
+    # default but available
+    assert c.max_at_fault_collisions == 0.0 and c.max_collision is None
+    assert c.max_offroad_s == 0.0
     assert c.min_progress_fraction == 0.5
     assert set(CRITERIA_METRICS) == set(Criteria.names())
     with pytest.raises(dataclasses.FrozenInstanceError):
@@ -57,13 +60,14 @@ def test_check_gives_typed_failures_in_criteria_order() -> None:
         _m("max_abs_lat_acc_mps2", 5.0, worst_step=7), _m("min_long_acc_mps2", -5.0,
                                                           worst_step=2),
         _m("min_ttc_s", 0.5, worst_step=4), _m("offroad_s", math.nan),
-        _m("collision", 1.0, worst_step=3, increments=np.eye(10)[3])], t_s)
-    assert [f.text for f in failed] == ["collision=1>0", "min_ttc_s=0.5<0.95",
+        _m("collision", 1.0, worst_step=3, increments=np.eye(10)[3]),
+        _m("at_fault_collisions", 1.0, worst_step=3, increments=np.eye(10)[3])], t_s)
+    assert [f.text for f in failed] == ["at_fault_collisions=1>0", "min_ttc_s=0.5<0.95",
                                         "min_long_acc_mps2=-5<-4.05",
                                         "max_abs_lat_acc_mps2=5>4.89"]
-    assert failed[0] == Failure(criterion="max_collision", metric="collision", value=1.0,
-                                limit=0.0, bound="max", unit="-", step=3,
-                                t_s=pytest.approx(0.4))
+    assert failed[0] == Failure(criterion="max_at_fault_collisions",
+                                metric="at_fault_collisions", value=1.0, limit=0.0,
+                                bound="max", unit="-", step=3, t_s=pytest.approx(0.4))
     assert [(f.criterion, f.bound, f.step) for f in failed[1:]] == [
         ("min_ttc_s", "min", 4), ("min_long_acc_mps2", "min", 2),
         ("max_abs_lat_acc_mps2", "max", 7)]

@@ -12,7 +12,9 @@ import pytest
 import synthetic_runs as sr
 
 from reports.metrics import REQUIRED_METRICS, Evaluation, evaluate, signal
+from reports.metrics.collisions import classify_collisions
 from reports.metrics.comfort import sg_window
+from reports.metrics.context import build_context
 from reports.metrics.drivable import OFFROAD_TOLERANCE_M
 from reports.metrics.geometry import box_corners
 from reports.metrics.ttc import swept_box_ttc
@@ -202,7 +204,9 @@ def test_collision_flags() -> None:
     _, ev = _judge(t2)
     assert ev.verdict.value("collision") == 1.0
     assert ev.verdict.value("first_collision_t_s") == pytest.approx(0.55)
-    assert "collision=1>0" in [f.text for f in ev.verdict.failures]
+    # a SUMO collision with no vehicle named: unclassified, so at fault
+    assert "at_fault_collisions=1>0" in [f.text for f in ev.verdict.failures]
+    assert ev.verdict.value("collisions_unclassified") == 1.0
     t3 = sr.straight_trace(2.0, 0.05, 20.0)
     t3.safety.geom_collision[5:8] = True
     assert _values(t3)["geom_collision_steps"] == 3.0
@@ -385,6 +389,9 @@ FAILING = {"drift_off_road": _drift_off_road, "sharp_turn_ramp": _sharp_turn_ram
 CUMULATIVE = {
     "collision": lambda r, e: (r.trace.safety.geom_collision
                                | r.trace.safety.sumo_collision).astype(float),
+    "at_fault_collisions": lambda r, e: np.bincount(
+        [c.row for c in classify_collisions(build_context(r)) if c.at_fault],
+        minlength=len(r.trace)).astype(float),
     "offroad_s": lambda r, e: np.where(e.series.offroad_excess_m > OFFROAD_TOLERANCE_M,
                                        0.05, 0.0),
     "fallbacks": lambda r, e: r.trace.controller.fallback.astype(float),
@@ -428,8 +435,8 @@ def test_located_failures_of_known_runs() -> None:
     assert off.step == first
     trace, kw = _rear_end()
     record, ev = _judge(trace, **kw)
-    (hit,) = [f for f in ev.verdict.failures if f.metric == "collision"]
-    assert hit.step == len(trace) - 5
+    (hit,) = [f for f in ev.verdict.failures if f.metric == "at_fault_collisions"]
+    assert hit.step == len(trace) - 5  # the monitor's first overlap flag with the lead
 
 
 def _worst_case_records() -> list[tuple[RunRecord, Evaluation]]:

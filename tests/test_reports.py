@@ -46,7 +46,7 @@ def test_results_csv(catalog: Path) -> None:
     assert by[("sharp_curve", "ctrl_b")].status == "pass"
     rear = by[("rear_end", "ctrl_a")]
     assert rear.status == "fail" and rear.collision == 1.0
-    assert "collision=1>0" in rear.failed_criteria.split(";")
+    assert "at_fault_collisions=1>0" in rear.failed_criteria.split(";")
     assert by[("crash_case", "ctrl_b")].status == "error"
     assert by[("crash_case", "ctrl_b")].run == "crash_case__ctrl_b"
     assert by[("slow_case", "ctrl_b")].status == "timeout"
@@ -84,7 +84,7 @@ def test_junit_xml(catalog: Path) -> None:
     rear = cases[("ctrl_a.cut_in", "rear_end")].find("failure")
     assert rear is not None
     # where it happened: the first of the 5 colliding steps of 80 (t = 3.8 s)
-    assert "collision=1>0 (t=3.80 s, step 75)" in (rear.text or "").splitlines()
+    assert "at_fault_collisions=1>0 (t=3.80 s, step 75)" in (rear.text or "").splitlines()
     crash = cases[("ctrl_b.cruise", "crash_case")].find("error")
     assert crash is not None and crash.get("type") == "error"
     assert "Traceback" in (crash.text or "") and '<&> "quoted"' in (crash.text or "")
@@ -159,7 +159,7 @@ def test_html_is_self_contained(catalog: Path) -> None:
     first = re.search(r'<details class="run" id="[^"]+" data-status="(\w+)"[^>]*?( open)?>', text)
     assert first is not None and first.group(1) == "error" and first.group(2) == " open"
     # the rear-end collision is marked at its stored step's time
-    assert "collision at t=3.8 s" in text
+    assert "at_fault_collisions at t=3.8 s" in text
 
 
 def test_decimation_keeps_extremes() -> None:

@@ -207,7 +207,8 @@ def test_events_for_collision(collision_run: tuple[Path, Path]) -> None:
     assert geom == [(100, "ERROR")]
     sumo = [(s, lv) for s, lv, t in ev if t.startswith("COLLISION (SUMO")]
     assert sumo == [(101, "ERROR")]
-    crit = [(s, t) for s, lv, t in ev if t.startswith("criterion violated: collision")]
+    crit = [(s, t) for s, lv, t in ev
+            if t.startswith("criterion violated: at_fault_collisions")]
     assert crit and crit[0][0] == 100
     assert any(t.startswith("criterion violated: max_abs_lat_acc") for _, _, t in ev)
     # every stored failure is logged at the step its verdict located it

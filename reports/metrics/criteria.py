@@ -7,8 +7,8 @@ Defaults and the reasoning behind them are in ``docs/metrics.md``.
 
 Where a failure happened (``Failure.step``, a trace row, and ``Failure.t_s``):
 
-* cumulative metrics (durations and counts: collision, offroad_s, shoulder_s,
-  deadline_misses, fallbacks) carry per-step increments; the step is the first row
+* cumulative metrics (durations and counts: collision, at_fault_collisions, offroad_s,
+  shoulder_s, deadline_misses, fallbacks) carry per-step increments; the step is the first row
   at which their running total exceeds the limit (with the default limit 0: the
   first collision, the first step off the road, ...);
 * extremes (accelerations, jerks, TTC, gaps, margins, residual, ...) fail where the
@@ -36,6 +36,7 @@ from reports.record import Failure
 # criterion field -> (metric name, bound: "max" fails if value > limit,
 #                                       "min" fails if value < limit)
 CRITERIA_METRICS: dict[str, tuple[str, str]] = {
+    "max_at_fault_collisions": ("at_fault_collisions", "max"),
     "max_collision": ("collision", "max"),
     "max_offroad_s": ("offroad_s", "max"),
     "min_ttc_s": ("min_ttc_s", "min"),
@@ -88,7 +89,8 @@ def override_limit(value: Any) -> float | None:
 class Criteria:
     """Limits; ``None`` disables a criterion. Units are in the names."""
 
-    max_collision: float | None = 0.0
+    max_at_fault_collisions: float | None = 0.0  # nuPlan's classes (metrics.collisions)
+    max_collision: float | None = None  # any contact: off by default, still reported
     max_offroad_s: float | None = 0.0
     min_ttc_s: float | None = 0.95
     min_progress_fraction: float | None = 0.5

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from reports.metrics.collisions import classify_collisions, collision_metrics
 from reports.metrics.comfort import comfort_metrics, comfort_series
 from reports.metrics.context import build_context
 from reports.metrics.criteria import Criteria, steps_failure
@@ -28,9 +29,10 @@ from reports.record.meta import END_OK
 
 # The metric names every verdict has, in report-column order (the others follow, sorted).
 REQUIRED_METRICS: tuple[str, ...] = (
-    "collision", "min_gap_m", "progress_m", "min_ttc_s", "min_ellipse_margin", "offroad_s",
-    "min_long_acc_mps2", "max_long_acc_mps2", "max_abs_lat_acc_mps2", "max_abs_yaw_rate_radps",
-    "max_abs_yaw_acc_radps2", "max_abs_long_jerk_mps3", "max_abs_jerk_mps3", "rms_lat_dev_m",
+    "collision", "at_fault_collisions", "min_gap_m", "progress_m", "min_ttc_s",
+    "min_ellipse_margin", "offroad_s", "min_long_acc_mps2", "max_long_acc_mps2",
+    "max_abs_lat_acc_mps2", "max_abs_yaw_rate_radps", "max_abs_yaw_acc_radps2",
+    "max_abs_long_jerk_mps3", "max_abs_jerk_mps3", "rms_lat_dev_m",
     "mean_speed_mps", "step_ms_p50", "step_ms_p99", "step_ms_max", "step_var_s2",
     "deadline_misses", "residual_max", "fallbacks", "realtime_factor",
 )
@@ -69,7 +71,8 @@ def measure(record: RunRecord) -> tuple[list[Measured], SeriesColumns]:
         yaw_rate_radps=comfort.yaw_rate_radps, yaw_acc_radps2=comfort.yaw_acc_radps2,
         long_jerk_mps3=comfort.long_jerk_mps3, jerk_mps3=comfort.jerk_mps3,
         ttc_s=ahead, ttc_rear_s=behind, offroad_excess_m=excess, ellipse_margin=margin)
-    found = (safety_metrics(ctx, ahead, behind, margin) + drivable_metrics(ctx, excess)
+    found = (safety_metrics(ctx, ahead, behind, margin)
+             + collision_metrics(ctx, classify_collisions(ctx)) + drivable_metrics(ctx, excess)
              + comfort_metrics(comfort) + tracking_metrics(ctx) + timing_metrics(ctx)
              + health_metrics(ctx))
     return _report_order(found), series

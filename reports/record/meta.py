@@ -18,12 +18,14 @@ END_OK = "ok"
 
 @dataclass(frozen=True)
 class EgoBox:
-    """The ego's body box relative to its CG [m]."""
+    """The ego's body box relative to its CG [m]; ``cg_to_rear_axle_m``: the rear axle
+    behind the CG (NaN in files written before it was recorded)."""
 
     length_m: float
     width_m: float
     cg_to_front_bumper_m: float
     cg_to_box_centre_m: float
+    cg_to_rear_axle_m: float = math.nan
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,8 @@ from suite.catalog import Scenario
 def ego_box(vehicle: VehicleParams) -> EgoBox:
     return EgoBox(length_m=vehicle.length_m, width_m=vehicle.width_m,
                   cg_to_front_bumper_m=vehicle.cg_to_front_bumper_m,
-                  cg_to_box_centre_m=vehicle.cg_to_box_centre_m)
+                  cg_to_box_centre_m=vehicle.cg_to_box_centre_m,
+                  cg_to_rear_axle_m=vehicle.cg_to_rear_axle_m)
 
 
 def scenario_info(scenario: Scenario, catalog_name: str, vehicle: VehicleParams,
