@@ -6,7 +6,8 @@ relative to the reference lane, leads and followers per lane):
 1. **The lane plan** (``_Plan``): keep a lane, or change from one lane into a neighbour.
    * Keeping lane c, a change is *wanted* to pass (a neighbour lane's speed, the speed of
      its lead within the planning range or the cruise speed, beats lane c's by
-     ``incentive_mps``: a stopped or slower car ahead), to return towards the home lane
+     ``incentive_mps``: a stopped or slower car ahead; on the right only a stopped or
+     crawling one, a moving car is never undertaken), to return towards the home lane
      (the reference lane: the lane the catalog asked for) once the passed vehicle is
      ``pass_after_m`` behind and the home lane is as fast, or because lane c ends. Left is
      tried before right. A wanted change starts when it is safe
@@ -44,13 +45,13 @@ import numpy.typing as npt
 from controllers.behaviour.ellipses import ellipse_semi_axes, offset_centre_y
 from controllers.behaviour.following import FollowParams, follow_speed_mps
 from controllers.behaviour.lane_change import LaneChangeParams, lane_change_safety
-from controllers.behaviour.tracking import AccelerationTracker
 from controllers.behaviour.perception import (
     LaneScene,
     Neighbour,
     project_traffic,
     relative_lanes,
 )
+from controllers.behaviour.tracking import AccelerationTracker
 from controllers.behaviour.types import (
     SIDE_FOLLOW,
     SIDE_LEFT,
@@ -242,6 +243,8 @@ class LaneBehaviour:
                         + lc.pass_after_m)
             lid = sc.traffic.ids[lead.index]
             for step, name in ((1, "left"), (-1, "right")):
+                if step < 0 and lead.speed_mps >= lc.undertake_below_mps:
+                    continue  # never undertake a moving car (keep-right rule)
                 v_there, _ = self._lane_speed(sc, c + step, set_speed)
                 if v_there - v_here > lc.incentive_mps:
                     wants.append(_Want(c + step, end, f"pass {lid} on the {name}", stopped, lid))
@@ -326,7 +329,12 @@ class LaneBehaviour:
         ds = sc.ds_m
         dist = np.hypot(ds, sc.fn.y_m - sc.ego.lat_m)
         in_lanes = np.isin(sc.rel_lane, np.array(sorted(lanes)))
-        relevant = (dist <= pol.detection_distance_m) & (ds >= -pol.rear_range_m) & in_lanes
+        leads = {n.index for r in lanes if (n := sc.lead(r)) is not None}
+        if lead >= 0:
+            leads.add(lead)
+        is_lead = np.isin(np.arange(sc.traffic.count), np.array(sorted(leads), dtype=np.intp))
+        relevant = ((dist <= pol.detection_distance_m) & (ds >= -pol.rear_range_m)
+                    & (in_lanes | is_lead))
         # A car behind in the lane the ego keeps (or leaves) is its follower's business:
         # as an ellipse it only pushes the ego forward and, squeezed against the lead's,
         # sideways out of its lane. Behind the ego only the lane moved into counts.
@@ -334,9 +342,6 @@ class LaneBehaviour:
         relevant &= ~((sc.rel_lane == home_lane) & (ds < 0.0))
         if not pol.moving_obstacles:
             relevant &= sc.traffic.stalled
-        leads = {n.index for r in lanes if (n := sc.lead(r)) is not None}
-        if lead >= 0:
-            leads.add(lead)
         idx = np.flatnonzero(relevant)
         key = [(0 if i in leads else 1, float(dist[i])) for i in idx]
         order = [int(idx[k]) for k in sorted(range(len(idx)), key=key.__getitem__)]

@@ -44,7 +44,10 @@ class LaneChangeParams:
     by a stopped vehicle); pass_after_m: how far beyond a passed vehicle's rear the ego
     stays in the pass lane; lane_end_margin_m: a target lane must continue this much
     beyond the manoeuvre; plan_horizon_s: how far ahead (at the ego's speed) a slower
-    vehicle counts as blocking; block_margin_mps: how much slower it must be.
+    vehicle counts as blocking; block_margin_mps: how much slower it must be;
+    undertake_below_mps: a vehicle ahead is passed on the right only while it is slower
+    than this (stopped or crawling: a broken-down car, a queue); a moving car is never
+    undertaken, the ego follows it or passes on the left (keep-right rule).
     """
 
     front_time_gap_s: float = 0.6
@@ -60,12 +63,13 @@ class LaneChangeParams:
     lane_end_margin_m: float = 20.0
     plan_horizon_s: float = 6.0
     block_margin_mps: float = 1.0
+    undertake_below_mps: float = 2.0
 
     def __post_init__(self) -> None:
         for name in ("front_time_gap_s", "rear_time_gap_s", "standstill_m", "safe_decel_mps2",
                      "abort_decel_mps2", "incentive_mps", "done_tolerance_m", "hold_s",
                      "pass_after_m", "lane_end_margin_m", "plan_horizon_s",
-                     "block_margin_mps"):
+                     "block_margin_mps", "undertake_below_mps"):
             v = getattr(self, name)
             if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v)
                                            and v >= 0):

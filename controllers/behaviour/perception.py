@@ -9,7 +9,10 @@ lane assignment, exact across index shifts); elsewhere (inside junctions, in the
 plant-only simulator) it is the lane whose centre is nearest the vehicle's offset.
 
 :class:`LaneScene` then answers the behaviour's questions per relative lane: the lead
-(nearest vehicle ahead) and the follower (nearest behind), with bumper gaps.
+(nearest vehicle ahead) and the follower (nearest behind), with bumper gaps. A vehicle
+counts in a lane by its relative lane *or* because its box reaches into the lane (a car
+straddling the line) or, ahead of the ego, will within a second at its lateral speed (a
+cut-in is followed from its start, not from when the world moves it into the lane).
 """
 
 from __future__ import annotations
@@ -25,6 +28,9 @@ from controllers.path.frenet import FrenetPath
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+INTRUSION_M = 0.3  # a box reaching this far past a lane's edge is in that lane
+CUT_IN_HORIZON_S = 1.0  # a car whose sideways motion brings it into a lane this soon leads
 
 
 @dataclass(frozen=True)
@@ -139,19 +145,36 @@ class LaneScene:
 
     def lead(self, rel: int) -> Neighbour | None:
         """The nearest vehicle ahead in relative lane ``rel`` (its rear ahead of the ego's
-        CG)."""
+        CG), counting a car about to cut in (:meth:`intruding` within
+        ``CUT_IN_HORIZON_S``)."""
         return self._nearest(rel, ahead=True)
 
     def follower(self, rel: int) -> Neighbour | None:
-        """The nearest vehicle behind in relative lane ``rel``."""
+        """The nearest vehicle behind in relative lane ``rel`` (or reaching into it)."""
         return self._nearest(rel, ahead=False)
+
+    def intruding(self, rel: int, horizon_s: float = 0.0) -> BoolArray:
+        """Vehicles whose box reaches more than ``INTRUSION_M`` into relative lane ``rel``
+        now or, moving sideways at their lateral speed, within ``horizon_s`` [s] (a car
+        cutting in, or straddling the line), whatever lane the world assigns them."""
+        if rel not in self.lanes or self.traffic.count == 0:
+            return np.zeros(self.traffic.count, dtype=bool)
+        centre = self.offset_m(rel)
+        reach = 0.5 * (self.lanes[rel].width_m + self.fn.width_m) - INTRUSION_M
+        y_now = self.fn.y_m - centre
+        y_then = y_now + self.fn.v_y_mps * horizon_s
+        # The box is in the corridor at some time in [0, horizon] if the segment between
+        # y_now and y_then meets [-reach, reach].
+        lo, hi = np.minimum(y_now, y_then), np.maximum(y_now, y_then)
+        return np.asarray((hi > -reach) & (lo < reach), dtype=bool)
 
     def _nearest(self, rel: int, ahead: bool) -> Neighbour | None:
         if self.traffic.count == 0:
             return None
         ds = self.ds_m
         half = 0.5 * (self.fn.length_m + self.ego_length_m)
-        in_lane = self.rel_lane == rel
+        in_lane = (self.rel_lane == rel) | self.intruding(
+            rel, CUT_IN_HORIZON_S if ahead else 0.0)
         mask = in_lane & (ds > 0.0) if ahead else in_lane & (ds <= 0.0)
         if not np.any(mask):
             return None

@@ -17,6 +17,8 @@ This file format is a public contract. A catalog looks like::
     traffic = { vehicles_per_hour = 1500, seed = 7 } # optional background traffic
     ramp_traffic = [ { edge = "ramp", vehicles_per_hour = 400 } ]  # optional, on-ramps
     friction = 0.6                                   # optional road friction (default 1)
+    actors = [ { id = "cutter", lane = 2, pos_m = 120.0, speed_mps = 22.0,
+                 events = [ { t_s = 3.0, lane_change = -1 } ] } ]  # optional, scripted
     controller = { name = "lane_keep" }              # a table may carry options
     [scenario.sweep]                # optional: cartesian product, one scenario per combination
     "stalled.0.pos_m" = [300.0, 500.0]
@@ -42,6 +44,15 @@ Keys of a scenario (all may also appear in ``[defaults]`` except ``name`` and ``
                     traffic of those lanes drives at most that fast and keeps its lane,
                     e.g. slower traffic in the passing lane; each lane must get traffic).
                     Default: no traffic.
+``actors``          list of tables, scripted vehicles: ``id`` (required, ``[a-z0-9_]+``,
+                    unique; SUMO id ``actor_<id>``), ``lane``, ``pos_m`` (front bumper,
+                    along the route), ``speed_mps`` (required), ``length_m`` (4.5),
+                    ``width_m`` (1.8), ``events`` (list of tables in time order: ``t_s``
+                    required, run time [s]; ``lane_change`` lanes to the left > 0 or right
+                    < 0 of its lane then; ``speed_mps`` a new speed reached at
+                    ``accel_mps2`` (2.0) m/s² and held; at least one of the two). An actor
+                    holds its speed and lane between events and brakes for what is ahead
+                    of it (:mod:`suite.world.actors`). Default: none.
 ``ramp_traffic``    list of tables, one per on-ramp: ``edge`` (required: an edge off the
                     route whose lane connections lead onto it within 8 edges),
                     ``vehicles_per_hour`` (required, >= 0), ``speed_mps`` (departure and
@@ -88,7 +99,7 @@ sweep list (``v0``, ``v1``...). ``Scenario.family`` is the unexpanded name and
 ``Scenario.sweep_values`` maps each swept path to its value.
 
 Validation against the network: route edges exist and connect; ``ego`` and ``stalled``
-positions lie in ``[0, route length)``; their lanes exist at that position
+and ``actors`` positions lie in ``[0, route length)``; their lanes exist at that position
 (:meth:`RoadNetwork.lanes_at`); the ego's start lane admits passenger cars, or is a hard
 shoulder and ``allow_shoulder`` is true; traffic lanes exist on the first route edge and
 admit passenger cars, and so do the lanes of ``traffic.lane_speeds_mps`` (which must also
@@ -134,6 +145,8 @@ from suite.catalog.frozen import FrozenMap
 from suite.catalog.loader import load_catalog
 from suite.catalog.nets import bundled_nets
 from suite.catalog.specs import (
+    ActorEventSpec,
+    ActorSpec,
     Catalog,
     ControllerSpec,
     EgoSpec,
@@ -145,6 +158,8 @@ from suite.catalog.specs import (
 from suite.catalog.sweep import format_sweep_value, sweep_name, sweep_shorts
 
 __all__ = [
+    "ActorEventSpec",
+    "ActorSpec",
     "Catalog",
     "CatalogError",
     "CatalogIssue",

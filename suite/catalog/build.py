@@ -3,7 +3,7 @@ field and, if it has no problem, built into a :class:`Scenario`.
 
 Every problem is reported through a :class:`~suite.catalog.report.Report`, in a fixed
 order: scalars, criteria, controller, net, route, ego, stalled, traffic, ramp traffic,
-then the placements and the traffic on the network (only if the net and route are
+actors, then the placements and the traffic on the network (only if the net and route are
 usable).
 """
 
@@ -18,12 +18,21 @@ from suite.catalog.controller_check import ControllerChecker
 from suite.catalog.errors import MISSING, SpecError
 from suite.catalog.network_checks import check_placements, resolve_net, resolve_route
 from suite.catalog.report import Report
-from suite.catalog.specs import EgoSpec, RampTrafficSpec, Scenario, StalledSpec, TrafficSpec
+from suite.catalog.specs import (
+    ActorEventSpec,
+    ActorSpec,
+    EgoSpec,
+    RampTrafficSpec,
+    Scenario,
+    StalledSpec,
+    TrafficSpec,
+)
 from suite.catalog.traffic_checks import check_traffic
 
 __all__ = ["build_variant"]
 
-_Spec = TypeVar("_Spec", EgoSpec, StalledSpec, TrafficSpec, RampTrafficSpec)
+_Spec = TypeVar("_Spec", EgoSpec, StalledSpec, TrafficSpec, RampTrafficSpec, ActorSpec,
+                ActorEventSpec)
 
 # Scalar keys of a scenario and their defaults (MISSING: required).
 _SCALARS: tuple[tuple[str, Any], ...] = (
@@ -47,9 +56,12 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
     stalled = _stalled(stalled_raw, report)
     traffic = _traffic(d.get("traffic", MISSING), scalars, report)
     ramps = _ramps(d.get("ramp_traffic", []), report)
+    actors_raw = d.get("actors", [])
+    actors = _actors(actors_raw, report)
     if network is not None and route is not None:
         check_placements(network, route, d.get("ego"), stalled_raw, traffic,
-                         bool(scalars.get("allow_shoulder", False)), report)
+                         bool(scalars.get("allow_shoulder", False)), report,
+                         actors_raw=actors_raw)
         check_traffic(network, route, traffic, ramps, report)
 
     if len(report.err.issues) != n_before:
@@ -67,7 +79,8 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
             allow_shoulder=scalars["allow_shoulder"], criteria=criteria,
             sweep_values=report.swept, record_radius_m=scalars["record_radius_m"],
             timeout_s=scalars["timeout_s"], friction=scalars["friction"],
-            ramp_traffic=tuple(r for r in ramps if r is not None))
+            ramp_traffic=tuple(r for r in ramps if r is not None),
+            actors=tuple(a for a in actors if a is not None))
     except SpecError as exc:  # pragma: no cover - the checks above mirror these
         report.add(exc.field, exc.expected, exc.got)
         return None
@@ -123,6 +136,48 @@ def _ramps(raw: Any, report: Report) -> list[RampTrafficSpec | None]:
         return []
     return [_spec(RampTrafficSpec, item, f"ramp_traffic.{i}", report)
             for i, item in enumerate(raw)]
+
+
+def _actors(raw: Any, report: Report) -> list[ActorSpec | None]:
+    """The scripted vehicles, every bad field of them and of their events reported."""
+    if not isinstance(raw, list):
+        report.add("actors", "a list of tables [{id = ..., lane = ..., pos_m = ..., "
+                   "speed_mps = ...}, ...]", raw)
+        return []
+    out: list[ActorSpec | None] = []
+    seen: set[str] = set()
+    for i, item in enumerate(raw):
+        key = f"actors.{i}"
+        if not isinstance(item, dict):
+            report.add(key, f"a table with keys {list(ActorSpec._RULES)}", item)
+            out.append(None)
+            continue
+        events_raw = item.get("events", [])
+        events: list[ActorEventSpec | None] = []
+        if isinstance(events_raw, list):
+            events = [_spec(ActorEventSpec, ev, f"{key}.events.{j}", report)
+                      for j, ev in enumerate(events_raw)]
+        actor = _spec(ActorSpec, {**item, "events": []}, key, report) \
+            if "events" not in item or isinstance(events_raw, list) else None
+        if not isinstance(events_raw, list):
+            report.add(f"{key}.events", "a list of tables [{t_s = ..., lane_change = ...}, "
+                       "...]", events_raw)
+        if actor is None or any(ev is None for ev in events):
+            out.append(None)
+            continue
+        try:
+            actor = ActorSpec(**{**item, "events": tuple(events)})
+        except SpecError as exc:
+            report.add(f"{key}.{exc.field}", exc.expected, exc.got)
+            out.append(None)
+            continue
+        if actor.id in seen:
+            report.add(f"{key}.id", "an id no other actor of the scenario has", actor.id)
+            out.append(None)
+            continue
+        seen.add(actor.id)
+        out.append(actor)
+    return out
 
 
 def _traffic(raw: Any, scalars: dict[str, Any], report: Report) -> TrafficSpec | None:

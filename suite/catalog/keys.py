@@ -9,7 +9,7 @@ __all__ = ["DEFAULT_KEYS", "OPTIONAL_SUBKEYS", "REQUIRED_KEYS", "SCENARIO_KEYS"]
 SCENARIO_KEYS = (
     "name", "net", "route", "ego", "stalled", "traffic", "controller", "duration_s", "step_s",
     "seed", "allow_shoulder", "criteria", "record_radius_m", "timeout_s", "friction",
-    "ramp_traffic", "sweep",
+    "ramp_traffic", "actors", "sweep",
 )
 DEFAULT_KEYS = tuple(k for k in SCENARIO_KEYS if k not in ("name", "sweep"))
 REQUIRED_KEYS = ("name", "net", "ego", "controller", "duration_s", "step_s")
@@ -19,4 +19,5 @@ OPTIONAL_SUBKEYS: dict[str, tuple[str, ...]] = {
     "traffic": ("vehicles_per_hour", "seed", "speed_mps", "lanes", "speed_factor_dev",
                 "lane_speeds_mps"),
     "ramp_traffic.*": ("edge", "vehicles_per_hour", "speed_mps"),
+    "actors.*": ("id", "lane", "pos_m", "speed_mps", "length_m", "width_m", "events"),
 }

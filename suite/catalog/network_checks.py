@@ -81,9 +81,10 @@ def resolve_route(raw: Any, network: RoadNetwork | None, report: Report
 
 def check_placements(network: RoadNetwork, route: tuple[str, ...], ego_raw: Any,
                      stalled_raw: Any, traffic: TrafficSpec | None, allow_shoulder: bool,
-                     report: Report) -> None:
-    """Report the ego, stalled vehicles and traffic lanes that do not fit the network.
-    ``ego_raw`` and ``stalled_raw`` are the raw values (checked where individually valid)."""
+                     report: Report, actors_raw: Any = ()) -> None:
+    """Report the ego, stalled vehicles, actors and traffic lanes that do not fit the
+    network. ``ego_raw``, ``stalled_raw`` and ``actors_raw`` are the raw values (checked
+    where individually valid)."""
     length = network.route_length_m(route)
     ego_ok = _check_ego(network, route, length, ego_raw, allow_shoulder, report)
     placed: list[tuple[str, int, float, float]] = []  # key, lane, position, length
@@ -92,6 +93,12 @@ def check_placements(network: RoadNetwork, route: tuple[str, ...], ego_raw: Any,
         if st_lp is not None and _place(network, route, length, st_lp[1], st_lp[0],
                                         f"stalled.{i}", report) is not None:
             placed.append((f"stalled.{i}", st_lp[0], st_lp[1], _length(item)))
+    for i, item in enumerate(actors_raw if isinstance(actors_raw, list) else []):
+        a_lp = _lane_pos(item)
+        if a_lp is not None and _place(network, route, length, a_lp[1], a_lp[0],
+                                       f"actors.{i}", report) is not None:
+            _check_actor_lane(network, route, a_lp, f"actors.{i}", report)
+            placed.append((f"actors.{i}", a_lp[0], a_lp[1], _length(item, ACTOR_LENGTH_M)))
     if ego_ok:
         lane, pos = _lane_pos(ego_raw) or (0, 0.0)
         placed.insert(0, ("ego", lane, pos, EGO_LENGTH_M))
@@ -102,12 +109,21 @@ def check_placements(network: RoadNetwork, route: tuple[str, ...], ego_raw: Any,
 
 EGO_LENGTH_M = 4.8  # controllers.plant.vehicle_model.VehicleParams().length_m
 STALLED_LENGTH_M = 4.8  # StalledSpec's default
+ACTOR_LENGTH_M = 4.5  # ActorSpec's default
 MIN_BUMPER_GAP_M = 1.0  # SUMO inserts nothing closer than this to another car
 
 
-def _length(raw: Any) -> float:
-    value = raw.get("length_m", STALLED_LENGTH_M) if isinstance(raw, dict) else STALLED_LENGTH_M
-    return float(value) if rules.is_number(value) and value > 0 else STALLED_LENGTH_M
+def _length(raw: Any, default: float = STALLED_LENGTH_M) -> float:
+    value = raw.get("length_m", default) if isinstance(raw, dict) else default
+    return float(value) if rules.is_number(value) and value > 0 else default
+
+
+def _check_actor_lane(network: RoadNetwork, route: tuple[str, ...], lane_pos: tuple[int, float],
+                      key: str, report: Report) -> None:
+    lane, pos = lane_pos
+    shoulder, passenger = _lane_props(network, route, pos, lane)
+    if not passenger and not shoulder:
+        report.add(f"{key}.lane", "a lane open to passenger cars", lane)
 
 
 def _check_overlaps(network: RoadNetwork, route: tuple[str, ...],

@@ -14,7 +14,8 @@ from typing import Any
 from suite.catalog.errors import SpecError
 
 __all__ = ["MAX_SEED", "NAME_RE", "Rule", "as_float", "boolean", "check_fields", "edge_id",
-           "friction", "integer", "is_number", "lane_key", "lane_speeds", "lanes", "name_rule",
+           "friction", "integer", "is_number", "lane_change", "lane_key", "lane_speeds", "lanes",
+           "name_rule", "table_list",
            "non_json_path", "num", "number_map"]
 
 NAME_RE = re.compile(r"^[a-z0-9_]+$")
@@ -96,6 +97,21 @@ def lane_key(key: Any) -> int | None:
     if isinstance(key, str) and key.isdigit() and key.isascii():
         return int(key)
     return None
+
+
+def lane_change(v: Any) -> str | None:
+    """A lane change: a non-zero number of lanes, left > 0, right < 0 (0: none)."""
+    if isinstance(v, int) and not isinstance(v, bool) and abs(v) <= 8:
+        return None
+    return "a number of lanes to change, left > 0 or right < 0 (e.g. 1 or -1)"
+
+
+def table_list(v: Any) -> str | None:
+    """A list (or tuple) of tables."""
+    if isinstance(v, list | tuple) and all(isinstance(x, Mapping) or hasattr(x, "t_s")
+                                           for x in v):
+        return None
+    return "a list of tables [{...}, ...]"
 
 
 def integer(lo: int = 0, hi: int | None = None) -> Rule:

@@ -143,7 +143,7 @@ def _optional_subkey_ok(comps: list[str], root: Mapping[str, Any]) -> bool:
         return comps[0] in DEFAULT_KEYS
     if len(comps) == 2 and comps[0] in OPTIONAL_SUBKEYS:
         return comps[1] in OPTIONAL_SUBKEYS[comps[0]]
-    if len(comps) == 3 and comps[0] in ("stalled", "ramp_traffic"):
+    if len(comps) == 3 and comps[0] in ("stalled", "ramp_traffic", "actors"):
         return comps[2] in OPTIONAL_SUBKEYS[f"{comps[0]}.*"]
     if len(comps) == 2 and comps[0] in ("criteria", "controller") and isinstance(
             root.get(comps[0]), Mapping):

@@ -1,6 +1,10 @@
-"""The SUMO route file of a scenario: vehicle types, the ego, stalled cars, traffic.
+"""The SUMO route file of a scenario: vehicle types, the ego, stalled cars, scripted
+actors, traffic.
 
-Stalled vehicles stop on their lane for the whole run. Background traffic: vehicles
+Stalled vehicles stop on their lane for the whole run. Scripted actors (``actors``)
+depart at t = 0 at their catalog speed under a type of their own (no dawdling,
+accelerations a scripted ramp can ask for); :class:`suite.world.actors.ActorScript`
+drives them. Background traffic: vehicles
 spread over the route at t = 0 with exponential headways (mean speed/flow, so traffic
 surrounds the ego from the first step) plus Poisson flows entering at the route's start,
 on every lane of the first route edge that admits passenger cars (or the lanes the
@@ -33,6 +37,9 @@ from suite.road.network import RoadNetwork
 EGO_ID = "ego"
 STALLED_PREFIX = "stalled"
 RAMP_PREFIX = "ramp"
+# Scripted actors: no dawdling (sigma 0), and the accelerations a scripted ramp may ask.
+ACTOR_ACCEL_MPS2 = 6.0
+ACTOR_DECEL_MPS2 = 8.0
 INSERT_CLEARANCE_M = 30.0  # no pre-placed traffic this close to the ego or a stalled car
 # A pre-placed car needs this much of its lane ahead: 2 s at its speed plus a stop at
 # 4 m/s² (SUMO refuses a departure that cannot stop before the lane ends).
@@ -67,6 +74,8 @@ class RouteFile:
         self.stalled_ids = []
         for i in range(len(sc.stalled)):
             lines.extend(self._stalled(i))
+        for i in range(len(sc.actors)):
+            lines.extend(self._actor(i))
         lines.append(self._ego())
         if sc.traffic is not None and sc.traffic.vehicles_per_hour > 0:
             lines.extend(self._traffic(rng))
@@ -139,6 +148,24 @@ class RouteFile:
             "  </vehicle>",
         ]
 
+    def _actor(self, i: int) -> list[str]:
+        actor = self.scenario.actors[i]
+        vid = actor.sumo_id
+        edge, pos_on_edge = self.network.locate(self.route, actor.pos_m)
+        k = self.route.index(edge)
+        pos = min(max(pos_on_edge, actor.length_m + 0.1), self.network.edge_length_m(edge) - 0.1)
+        return [
+            f'  <route id="r_{vid}" edges="{" ".join(self.route[k:])}"/>',
+            f'  <vType id="t_{vid}" vClass="passenger" color="255,160,0" sigma="0" '
+            f'length="{_fmt(actor.length_m)}" width="{_fmt(actor.width_m)}" maxSpeed="70" '
+            f'accel="{_fmt(ACTOR_ACCEL_MPS2)}" decel="{_fmt(ACTOR_DECEL_MPS2)}" '
+            # speedFactor 2: a scripted speed may exceed the lane's limit.
+            f'emergencyDecel="9.0" speedFactor="2" speedDev="0"/>',
+            f'  <vehicle id="{vid}" type="t_{vid}" route="r_{vid}" depart="0" '
+            f'departLane="{actor.lane}" departPos="{_fmt(pos)}" '
+            f'departSpeed="{_fmt(actor.speed_mps)}"/>',
+        ]
+
     def _ego(self) -> str:
         """The ego's vehicle. Driven from outside, it is inserted at rest: SUMO refuses an
         insertion at a speed it could not stop from before the car ahead (a stalled car 50
@@ -203,7 +230,8 @@ class RouteFile:
         graph = RouteLaneGraph(net, self.route)
         starts = net.route_edge_starts_m(self.route)
         route_len = net.route_length_m(self.route)
-        blocked = [sc.ego.pos_m] + [st.pos_m for st in sc.stalled]
+        blocked = ([sc.ego.pos_m] + [st.pos_m for st in sc.stalled]
+                   + [a.pos_m for a in sc.actors])
         lines: list[str] = []
         n = 0
         for lane in lanes:

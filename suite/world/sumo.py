@@ -29,6 +29,7 @@ from controllers.plant.vehicle_model import VehicleParams
 from reports.record import StalledVehicle, SumoCollision
 from suite.catalog import Scenario
 from suite.road.network import RoadNetwork
+from suite.world.actors import ActorScript
 from suite.world.protocol import EgoPose, Scene, WorldEgo, WorldSummary
 from suite.world.routes import EGO_ID, STALLED_PREFIX, RouteFile
 from suite.world.ssm import parse_ssm
@@ -68,6 +69,7 @@ class SumoWorld:
         self.work_dir = Path(work_dir)
         self.externally_driven = externally_driven
         self._routes = RouteFile(scenario, network, vehicle, self.ssm_file, externally_driven)
+        self._actors = ActorScript(scenario.actors)
         self._radius_m = max(float(scenario.record_radius_m), SENSING_RADIUS_M)
         self._ls: Any = None
         self._tc: Any = None
@@ -101,6 +103,7 @@ class SumoWorld:
         for vid in self._routes.stalled_ids:
             if vid in libsumo.vehicle.getIDList():
                 libsumo.vehicle.setSignals(vid, HAZARD_SIGNAL)
+        self._actors.start(libsumo)
         if self.externally_driven:
             libsumo.vehicle.setSpeedMode(EGO_ID, 32)
             libsumo.vehicle.setLaneChangeMode(EGO_ID, 0)
@@ -163,7 +166,8 @@ class SumoWorld:
                                   math_rad_to_nav_deg(pose.heading_rad), keepRoute=2)
 
     def _advance(self) -> tuple[SumoCollision, ...]:
-        """One SUMO step; the collisions involving the ego in it."""
+        """One SUMO step (the actors' commands first); the collisions involving the ego."""
+        self._actors.apply(self._ls, self._time() - self._t_origin)
         self._ls.simulationStep()
         t = self._time()
         hits = tuple(SumoCollision(t_s=t, collider=str(c.collider), victim=str(c.victim),
