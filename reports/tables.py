@@ -20,6 +20,7 @@ import pandas as pd
 
 from reports.metrics.evaluate import REQUIRED_METRICS
 from reports.metrics.timing import loop_times_s
+from reports.pool import TimePool
 from reports.record import (
     SERIES,
     TRACE,
@@ -35,8 +36,8 @@ from reports.record import (
 )
 from reports.record.meta import END_OK, STATUSES
 
-LEAD_COLUMNS = ("scenario", "controller", "status", "collision", "min_gap_m", "progress_m",
-                "sim_time_s", "wall_s")
+LEAD_COLUMNS = ("scenario", "controller", "variant", "status", "collision", "min_gap_m",
+                "progress_m", "sim_time_s", "wall_s")
 
 # summary.csv: metric -> aggregations over the runs of a group (finite values only)
 SUMMARY_METRICS: dict[str, tuple[str, ...]] = {
@@ -57,7 +58,7 @@ SUMMARY_METRICS: dict[str, tuple[str, ...]] = {
     "deadline_misses": ("sum",),
     "realtime_factor": ("mean", "min"),
 }
-# pooled per-step timing over all runs of a group: loop -> percentiles
+# pooled per-step timing over all runs of a group: loop -> percentiles (reports.pool)
 SUMMARY_TIMING: dict[str, tuple[int, ...]] = {"step": (50, 99), "outer": (50, 99),
                                               "inner": (50, 99), "sumo": (50, 99)}
 
@@ -84,6 +85,8 @@ class RunEntry:
     error: why a run is 'error' or 'timeout' (its traceback, or the reason it cannot be
         read); '' otherwise.
     record: the loaded parts (:class:`Parts`), None when the directory could not be read.
+    variant: the controller and its options that differ among the runs reported
+        together (:mod:`reports.variants`); the controller name until set.
     """
 
     run_dir: Path
@@ -93,6 +96,12 @@ class RunEntry:
     status: str
     error: str = ""
     record: RunRecord | None = None
+    variant: str = ""
+
+    @property
+    def label(self) -> str:
+        """The variant label (the controller name when none was set)."""
+        return self.variant or self.controller
 
     @property
     def run_id(self) -> str:
@@ -207,6 +216,7 @@ def results_frame(runs: Sequence[RunEntry]) -> pd.DataFrame:
     for run in runs:
         values = run.verdict.values() if run.verdict is not None else {}
         row: dict[str, object] = {"scenario": run.scenario, "controller": run.controller,
+                                  "variant": run.label,
                                   "status": run.status, "sim_time_s": run.sim_time_s,
                                   "wall_s": run.wall_s}
         for name in names:
@@ -228,25 +238,48 @@ def _agg(values: np.ndarray, how: str) -> float:
     return float(getattr(np, how)(values))
 
 
-def pooled_times_s(runs: Sequence[RunEntry], loop: str) -> np.ndarray:
-    """Per-step times [s] of one loop pooled over the runs whose trace is loaded."""
-    parts = [loop_times_s(r.record.trace, loop) for r in runs if r.record is not None]
-    return np.concatenate(parts) if parts else np.zeros(0)
+GroupKey = tuple[str, str]  # (variant, family or "ALL")
+Pools = dict[GroupKey, dict[str, TimePool]]
 
 
-def summary_frame(runs: Sequence[RunEntry]) -> pd.DataFrame:
-    """Per controller and scenario family (plus family 'ALL' per controller): status
-    counts, pass rate, aggregated key metrics and pooled per-step timing percentiles."""
-    groups: dict[tuple[str, str], list[RunEntry]] = {}
+def group_keys(run: RunEntry) -> tuple[GroupKey, GroupKey]:
+    """The two summary groups a run belongs to: its variant's family and 'ALL'."""
+    return (run.label, run.family), (run.label, "ALL")
+
+
+def add_to_pools(pools: Pools, run: RunEntry) -> None:
+    """Add the per-step times of a run whose trace is loaded to its groups' pools."""
+    if run.record is None or len(run.record.trace) == 0:
+        return
+    for key in group_keys(run):
+        loops = pools.setdefault(key, {loop: TimePool() for loop in SUMMARY_TIMING})
+        for loop, pool in loops.items():
+            pool.add(loop_times_s(run.record.trace, loop))
+
+
+def pools_of(runs: Sequence[RunEntry]) -> Pools:
+    """Timing pools of runs whose traces are loaded (tests and small outputs)."""
+    pools: Pools = {}
     for run in runs:
-        groups.setdefault((run.controller, run.family), []).append(run)
-        groups.setdefault((run.controller, "ALL"), []).append(run)
+        add_to_pools(pools, run)
+    return pools
+
+
+def summary_frame(runs: Sequence[RunEntry], pools: Pools | None = None) -> pd.DataFrame:
+    """Per controller variant and scenario family (plus family 'ALL' per variant):
+    status counts, pass rate, aggregated key metrics and pooled per-step timing
+    percentiles [ms] (from ``pools``; built from the runs' traces when None)."""
+    pools = pools_of(runs) if pools is None else pools
+    groups: dict[GroupKey, list[RunEntry]] = {}
+    for run in runs:
+        for key in group_keys(run):
+            groups.setdefault(key, []).append(run)
     rows = []
-    for (controller, family), members in sorted(groups.items(),
-                                                key=lambda kv: (kv[0][0], kv[0][1] == "ALL",
-                                                                kv[0][1])):
-        row: dict[str, object] = {"controller": controller, "family": family,
-                                  "runs": len(members)}
+    for (variant, family), members in sorted(groups.items(),
+                                             key=lambda kv: (kv[0][0], kv[0][1] == "ALL",
+                                                             kv[0][1])):
+        row: dict[str, object] = {"controller": members[0].controller, "variant": variant,
+                                  "family": family, "runs": len(members)}
         for status in STATUSES:
             row[status] = sum(1 for r in members if r.status == status)
         row["pass_rate"] = sum(1 for r in members if r.status == "pass") / len(members)
@@ -254,11 +287,12 @@ def summary_frame(runs: Sequence[RunEntry]) -> pd.DataFrame:
             values = np.array([r.value(metric) for r in members], dtype=float)
             for how in hows:
                 row[f"{how}_{metric}"] = _agg(values, how)
+        loops = pools.get((variant, family), {})
         for loop, percentiles in SUMMARY_TIMING.items():
-            pooled = pooled_times_s(members, loop)
+            pool = loops.get(loop)
             for q in percentiles:
-                row[f"{loop}_ms_p{q}"] = (float(np.percentile(pooled, q) * 1e3) if pooled.size
-                                          else math.nan)
+                row[f"{loop}_ms_p{q}"] = pool.percentile(q) * 1e3 if pool is not None \
+                    and pool.n else math.nan
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -270,8 +304,9 @@ def write_results_csv(runs: Sequence[RunEntry], path: str | Path) -> Path:
     return path
 
 
-def write_summary_csv(runs: Sequence[RunEntry], path: str | Path) -> Path:
+def write_summary_csv(runs: Sequence[RunEntry], path: str | Path,
+                      pools: Pools | None = None) -> Path:
     """Write summary.csv; returns its path."""
     path = Path(path)
-    summary_frame(runs).to_csv(path, index=False)
+    summary_frame(runs, pools).to_csv(path, index=False)
     return path

@@ -1,13 +1,37 @@
-"""``write_reports``: the four report files of a catalog output directory."""
+"""``write_reports``: results.csv, summary.csv, junit.xml, report.html and a page per run.
+
+Streaming: the controller and options of every run are read first (from run.json, for
+the variant labels), then each run is loaded with its per-step files one at a time, its page
+written, its per-step times added to the timing pools (:mod:`reports.pool`) and the
+run dropped before the next is read. Memory is one run plus the verdicts, whatever
+the number of runs. A run whose per-step files cannot be read becomes an 'error'
+entry with the reason (its page says it).
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import json
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from reports.html import write_html
+from reports.html import Links, render_index, render_run_page
+from reports.html.style import CSS
 from reports.junit import write_junit
-from reports.tables import EVERYTHING, collect_runs, write_results_csv, write_summary_csv
+from reports.manifest import read_manifest
+from reports.record import RUN_JSON, ControllerArrays, NeighbourColumns, Trace, iter_run_dirs
+from reports.tables import (
+    EVERYTHING,
+    Pools,
+    RunEntry,
+    add_to_pools,
+    read_entry,
+    write_results_csv,
+    write_summary_csv,
+)
+from reports.variants import variant_labels
 
 
 @dataclass(frozen=True)
@@ -18,24 +42,71 @@ class ReportPaths:
     summary_csv: Path
     junit_xml: Path
     report_html: Path
+    run_pages: Path
+
+
+def light(entry: RunEntry) -> RunEntry:
+    """The entry without its per-step parts (what the index and tables keep)."""
+    if entry.record is None:
+        return entry
+    record = dataclasses.replace(entry.record, trace=Trace.empty(),
+                                 neighbours=NeighbourColumns.allocate(0),
+                                 arrays=ControllerArrays(), series=None)
+    return dataclasses.replace(entry, record=record)
+
+
+def controller_of(run_dir: Path) -> tuple[str, dict[str, Any]] | None:
+    """(controller, controller_options) from run.json without decoding the rest (the
+    variant labels need every run's before the first page is written); None when
+    unreadable (the run is then reported as an error by :func:`read_entry`)."""
+    try:
+        info = json.loads((run_dir / RUN_JSON).read_text())["info"]
+        options = info.get("controller_options") or {}
+        return str(info["controller"]), options if isinstance(options, dict) else {}
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _pages(runs: list[tuple[Path, str]], links: Links, title: str, pools: Pools
+           ) -> list[RunEntry]:
+    """Write every run's page, one run in memory at a time; returns the light entries
+    (a run whose files are unreadable comes back as its error entry)."""
+    links.pages.mkdir(parents=True, exist_ok=True)
+    (links.pages / "report.css").write_text(CSS, encoding="utf-8")
+    kept = []
+    for run_dir, variant in runs:
+        full = dataclasses.replace(read_entry(run_dir, EVERYTHING), variant=variant)
+        add_to_pools(pools, full)
+        links.page_file(full.run_id).write_text(render_run_page(full, links, title),
+                                                encoding="utf-8")
+        kept.append(light(full))
+    return kept
 
 
 def write_reports(out_dir: str | Path, dest_dir: str | Path | None = None) -> ReportPaths:
-    """Write results.csv, summary.csv, junit.xml and report.html for every run directory
-    under ``out_dir`` into ``dest_dir`` (default ``out_dir``), from the stored verdicts
-    and series (nothing is re-evaluated). Raises FileNotFoundError if ``out_dir`` is not
-    a directory; an unreadable run directory is an 'error' row."""
+    """Write the reports of every run directory under ``out_dir`` into ``dest_dir``
+    (default ``out_dir``), from the stored verdicts and series (nothing is
+    re-evaluated). Raises FileNotFoundError if ``out_dir`` is not a directory."""
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         raise FileNotFoundError(f"{out_dir}: not a directory")
     dest = Path(dest_dir) if dest_dir is not None else out_dir
     dest.mkdir(parents=True, exist_ok=True)
-    # report.html draws every run, so every part is loaded once and shared by the four
-    runs = collect_runs(out_dir, EVERYTHING)
+    links = Links(dest)
+    if links.pages.is_dir():
+        shutil.rmtree(links.pages)  # pages of runs that are gone must not linger
+    run_dirs = iter_run_dirs(out_dir)
+    labels = variant_labels([controller_of(d) for d in run_dirs])
+    title = f"hwyeval report — {out_dir.resolve().name}"
+    pools: Pools = {}
+    runs = _pages(list(zip(run_dirs, labels, strict=True)), links, title, pools)
+    index = dest / "report.html"
+    index.write_text(render_index(runs, pools, links, title, read_manifest(out_dir)),
+                     encoding="utf-8")
     return ReportPaths(
         results_csv=write_results_csv(runs, dest / "results.csv"),
-        summary_csv=write_summary_csv(runs, dest / "summary.csv"),
+        summary_csv=write_summary_csv(runs, dest / "summary.csv", pools),
         junit_xml=write_junit(runs, dest / "junit.xml"),
-        report_html=write_html(runs, dest / "report.html",
-                               title=f"hwyeval report — {out_dir.resolve().name}"),
+        report_html=index,
+        run_pages=links.pages,
     )

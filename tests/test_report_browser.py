@@ -1,102 +1,108 @@
-"""report.html in headless Chromium: renders without console errors or network requests."""
+"""report.html and the run pages in headless Chromium: the failures list first, tick
+labels at their gridlines, no console errors, no network; screenshots kept in
+tests/artifacts/."""
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
-import tempfile
 from pathlib import Path
+from typing import Any
 
 import pytest
 import synthetic_runs as sr
+from browser import chromium, console_errors, needs_chromium, screenshot
 
 from reports import write_reports
 
-CHROMIUM = os.environ.get("HWYEVAL_CHROMIUM", "/usr/bin/chromium")
-CHROMEDRIVER = os.environ.get("HWYEVAL_CHROMEDRIVER", "/usr/bin/chromedriver")
-
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.skipif(not (Path(CHROMIUM).is_file() and Path(CHROMEDRIVER).is_file()),
-                       reason="headless Chromium / chromedriver not installed"),
-]
+pytestmark = needs_chromium
 
 
 @pytest.fixture()
-def driver(tmp_path: Path):
-    webdriver = pytest.importorskip("selenium.webdriver")
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                "--disable-background-networking", "--disable-component-update",
-                "--disable-sync", "--no-first-run", "--window-size=1400,2400"):
-        options.add_argument(arg)
-    profile = tempfile.mkdtemp(prefix="hwyeval-chromium-")
-    options.add_argument(f"--user-data-dir={profile}")
-    options.binary_location = CHROMIUM
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    drv = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
-    try:
-        yield drv
-    finally:
-        drv.quit()
-        shutil.rmtree(profile, ignore_errors=True)
+def driver() -> Any:
+    yield from chromium()
 
 
-def test_report_renders_offline(driver, tmp_path: Path) -> None:
-    from selenium.webdriver.common.by import By
-
-    out = sr.make_catalog(tmp_path / "catalog")
-    html_path = write_reports(out).report_html
-    text = html_path.read_text()
-    assert not re.search(r"""(src|href)\s*=\s*["']?https?://""", text)
-    assert "http://" not in text and "https://" not in text
-
-    driver.get(html_path.resolve().as_uri())
-    assert driver.title.startswith("hwyeval report")
-    errors = [e for e in driver.get_log("browser") if e.get("level") in ("SEVERE", "ERROR")]
-    assert errors == []
-
+def _no_network(driver: Any) -> None:
     resources = driver.execute_script(
         "return performance.getEntriesByType('resource').map(function(e){return e.name;})")
     assert all(str(r).startswith(("file:", "data:")) for r in resources), resources
 
+
+def test_the_failures_list_is_the_first_thing_under_the_header(driver: Any,
+                                                               tmp_path: Path) -> None:
+    from selenium.webdriver.common.by import By
+
+    out = sr.make_catalog(tmp_path / "catalog")
+    index = write_reports(out).report_html
+    text = index.read_text()
+    assert "http://" not in text and "https://" not in text
+    driver.get(index.resolve().as_uri())
+    assert driver.title.startswith("hwyeval report")
+    assert console_errors(driver) == []
+    _no_network(driver)
+    first = driver.execute_script("return document.querySelector('main').firstElementChild.id")
+    assert first == "failures"
+    header = driver.find_element(By.TAG_NAME, "header")
+    section = driver.find_element(By.ID, "failures")
+    assert abs(section.location["y"] - (header.location["y"] + header.size["height"])) < 40
+    rows = section.find_elements(By.CSS_SELECTOR, "tbody tr")
+    assert len(rows) == 5  # 12 runs, 7 passed
+    # errors first, each row's reason visible in the first screen
+    assert rows[0].get_attribute("class") == "error"
+    assert "RuntimeError: solver diverged" in section.text
+    fail = next(r for r in rows if "sharp_curve" in r.text)
+    assert "max_abs_lat_acc_mps2" in fail.text and "m/s²" in fail.text and "t = " in fail.text
+    assert fail.location["y"] + fail.size["height"] < driver.execute_script(
+        "return window.innerHeight")
+    screenshot(driver, "report_index")
+    rrd = fail.find_element(By.LINK_TEXT, "run.rrd").get_attribute("href")
+    assert rrd.endswith("/sharp_curve__ctrl_a/run.rrd")
+    # the variant columns and the run table
     matrix = driver.find_element(By.ID, "scenario-matrix")
-    cells = matrix.find_elements(By.CSS_SELECTOR, "td.cell")
-    assert len(cells) == 12
-    assert {c.text for c in cells} == {"pass", "fail", "error", "timeout"}
-    svgs = driver.find_elements(By.CSS_SELECTOR, "svg")
-    assert len(svgs) > 40
-    assert driver.find_elements(By.CSS_SELECTOR, "svg.bev")
-    assert len(driver.find_elements(By.CSS_SELECTOR, "details.run")) == 12
-    size = svgs[0].size
-    assert size["width"] > 100 and size["height"] > 50
-
-    # a matrix link opens its (closed, passing) run section
-    link = matrix.find_element(By.CSS_SELECTOR, 'a[href="#run-cruise_straight__ctrl_a"]')
-    target = driver.find_element(By.ID, "run-cruise_straight__ctrl_a")
-    assert target.get_attribute("open") is None
-    link.click()
-    assert target.get_attribute("open") is not None
-
-    # a failed run is open and marks where its stored failure was located
-    marks = driver.find_element(By.CSS_SELECTOR, "#run-sharp_curve__ctrl_a p.marks")
-    assert marks.is_displayed()
-    assert marks.text.startswith("✖ max_abs_lat_acc_mps2 at t=")
-
-    # the filter hides non-matching runs
+    assert {c.text for c in matrix.find_elements(By.CSS_SELECTOR, "td.cell")} == {
+        "pass", "fail", "error", "timeout"}
     box = driver.find_element(By.ID, "filter")
     box.send_keys("sharp_curve")
-    visible = [d for d in driver.find_elements(By.CSS_SELECTOR, "details.run") if d.is_displayed()]
-    assert len(visible) == 2
-    box.clear()
-    driver.execute_script("document.getElementById('filter').dispatchEvent(new Event('input'))")
+    shown = [r for r in driver.find_elements(By.CSS_SELECTOR, "table.runs tbody tr")
+             if r.is_displayed()]
+    assert len(shown) == 2
+    # a failure's link opens its run page at its failures
+    driver.get(fail.find_element(By.PARTIAL_LINK_TEXT, "sharp_curve").get_attribute("href"))
+    assert driver.current_url.endswith("report-runs/sharp_curve__ctrl_a.html#failures")
+    assert "max_abs_lat_acc_mps2" in driver.find_element(By.ID, "failures").text
+    assert console_errors(driver) == []
 
-    shot = Path(tempfile.gettempdir()) / "hwyeval_report_screenshot.png"
-    driver.execute_script("window.scrollTo(0, 0)")
-    assert driver.save_screenshot(str(shot))
-    assert shot.stat().st_size > 10_000
-    errors = [e for e in driver.get_log("browser") if e.get("level") in ("SEVERE", "ERROR")]
-    assert errors == []
+
+def _chart_ticks(driver: Any) -> list[dict[str, Any]]:
+    return driver.execute_script("""
+      return Array.from(document.querySelectorAll('svg.chart')).map(function(svg){
+        return {y0: +svg.dataset.y0, y1: +svg.dataset.y1, top: +svg.dataset.top,
+                h: +svg.dataset.h, log: svg.dataset.log === '1',
+                grid: svg.querySelector('path.grid').getAttribute('d'),
+                labels: Array.from(svg.querySelectorAll('text.yt')).map(function(t){
+                  return [t.textContent, +t.getAttribute('y')];})};});""")
+
+
+def test_tick_labels_equal_their_gridline_values(driver: Any, tmp_path: Path) -> None:
+    out = sr.make_catalog(tmp_path / "catalog")
+    paths = write_reports(out)
+    checked = 0
+    for page in sorted(paths.run_pages.glob("*.html")):
+        driver.get(page.resolve().as_uri())
+        assert console_errors(driver) == []
+        _no_network(driver)
+        for chart in _chart_ticks(driver):
+            if chart["log"]:
+                continue
+            grid_ys = [float(m) for m in re.findall(r"M64 ([-\d.]+)h", chart["grid"])]
+            for text, label_y in chart["labels"]:
+                value = float(text.replace("−", "-"))
+                line_y = label_y - 3.0  # a label sits 3 px below its gridline
+                at = chart["top"] + chart["h"] * (1 - (value - chart["y0"])
+                                                  / (chart["y1"] - chart["y0"]))
+                assert abs(at - line_y) < 0.02, (page.name, text, at, line_y)
+                assert min(abs(g - line_y) for g in grid_ys) < 0.01
+                checked += 1
+        if page.name == "sharp_curve__ctrl_a.html":
+            screenshot(driver, "report_run_page")
+    assert checked > 300

@@ -121,7 +121,9 @@ def test_reports_render_the_stored_verdict_not_the_trace(tmp_path: Path) -> None
     junit = paths.junit_xml.read_text()
     assert "max_abs_lat_acc_mps2=9.876&gt;4.89 (t=6.20 s, step 123)" in junit
     html = paths.report_html.read_text()
-    assert "max_abs_lat_acc_mps2 at t=6.2 s" in html  # the stored location, marked
+    assert "9.876 m/s² &gt; 4.89 m/s²" in html and "t = 6.20 s" in html  # failures list
+    page = (paths.run_pages / "cruise_straight__ctrl_a.html").read_text()
+    assert "max_abs_lat_acc_mps2 at t=6.2 s" in page  # the stored location, marked
 
 
 def test_unreadable_run_directories_are_error_rows(tmp_path: Path) -> None:
@@ -150,16 +152,53 @@ def test_unreadable_run_directories_are_error_rows(tmp_path: Path) -> None:
 def test_html_is_self_contained(catalog: Path) -> None:
     text = (catalog / "report.html").read_text()
     assert not re.search(r"https?://", text)
-    assert not re.search(r"""(src|href)\s*=\s*["'](?!#|data:)""", text)
+    # links are relative: run pages and the runs' .rrd files, nothing outside
+    for href in re.findall(r"""(?:src|href)\s*=\s*["']([^"']+)""", text):
+        assert href.startswith(("#", "data:", "report-runs/")) or href.endswith("/run.rrd"), href
+        assert not href.startswith(("/", "file:")), href
     assert "<script src" not in text and "@import" not in text and "url(" not in text
-    assert text.count("<details") == 12
     assert 'id="scenario-matrix"' in text
-    assert text.count("<svg") > 12 * 5
-    # failed ones come first and open
-    first = re.search(r'<details class="run" id="[^"]+" data-status="(\w+)"[^>]*?( open)?>', text)
-    assert first is not None and first.group(1) == "error" and first.group(2) == " open"
-    # the rear-end collision is marked at its stored step's time
-    assert "at_fault_collisions at t=3.8 s" in text
+    pages = sorted((catalog / "report-runs").glob("*.html"))
+    assert len(pages) == 12
+    for page in pages:
+        html = page.read_text()
+        assert not re.search(r"https?://", html)
+        assert 'href="report.css"' in html and 'href="../report.html"' in html
+    # failed ones come first in the failures list, an error first of all
+    rows = re.findall(r'<tr class="(\w+)"><td><span class="badge', text)
+    assert rows[:2] == ["error", "timeout"] and set(rows[2:]) == {"fail"}
+    # the rear-end collision is marked at its stored step's time on its page
+    assert "collision" in (catalog / "report-runs" / "rear_end__ctrl_a.html").read_text()
+    assert "at t=3.8 s" in (catalog / "report-runs" / "rear_end__ctrl_a.html").read_text()
+
+
+def test_controller_variants_are_columns_of_their_own(tmp_path: Path) -> None:
+    out = tmp_path / "variants"
+    for cost in ("J1", "J2"):
+        for preview in (True, False):
+            name = f"cmp__cost{cost.lower()}__preview{str(preview).lower()}"
+            spec = {"sweep_values": {"controller.outer.cost": cost,
+                                     "controller.inner.preview": preview}}
+            sr.write_run(out / name, sr.straight_trace(5.0),
+                         info=sr.base_info(name, "two_loop", family="cmp", scenario_spec=spec,
+                                           controller_options={"outer": {"cost": cost,
+                                                                         "horizon": 20},
+                                                               "inner": {"preview": preview}}))
+    paths = write_reports(out)
+    html = paths.report_html.read_text()
+    head = re.search(r'id="scenario-matrix"><thead><tr>(.*?)</tr>', html)
+    assert head is not None
+    columns = re.findall(r"<th>([^<]*)</th>", head.group(1))[1:]
+    assert columns == sorted(f"two_loop inner.preview={p} outer.cost={c}"
+                             for c in ("J1", "J2") for p in ("true", "false"))
+    # one row holds the case for every variant (the sweep's controller parts dropped)
+    matrix = html[html.index('id="scenario-matrix"'):]
+    matrix = matrix[:matrix.index("</table>")]
+    assert matrix.count("<tr><th>cmp</th>") == 1 and matrix.count('class="cell pass"') == 4
+    results = pd.read_csv(paths.results_csv)
+    assert set(results["variant"]) == set(columns)
+    summary = pd.read_csv(paths.summary_csv)
+    assert set(summary["variant"]) == set(columns)
 
 
 def test_decimation_keeps_extremes() -> None:
@@ -180,10 +219,13 @@ def test_html_size_for_a_large_catalog(tmp_path: Path) -> None:
                      info=sr.base_info(f"case_{i:03d}", "ctrl_a" if i % 2 else "ctrl_b",
                                        family=f"fam{i % 5}", step_s=0.02))
     paths = write_reports(out)
-    size = paths.report_html.stat().st_size
-    assert size < 12_000_000, size
-    for m in re.finditer(r'<path d="([^"]+)"', paths.report_html.read_text()):
-        assert m.group(1).count("L") < MAX_POINTS + 1
+    assert paths.report_html.stat().st_size < 400_000
+    pages = list(paths.run_pages.glob("*.html"))
+    assert len(pages) == 100
+    assert sum(p.stat().st_size for p in pages) < 100 * 30_000
+    for page in pages[:10]:
+        for m in re.finditer(r'<path d="([^"]+)"', page.read_text()):
+            assert m.group(1).count("l") < MAX_POINTS + 1
 
 
 def test_family_fallback() -> None:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reports.html.charts import MAX_POINTS, esc, fmt
+from reports.html.charts import esc, fmt
 from reports.html.marks import Mark
 from reports.metrics.geometry import box_corners, ego_box_corners
 from reports.record import RunRecord, Verdict
@@ -23,7 +23,9 @@ from reports.record import RunRecord, Verdict
 VIRIDIS = ("#440154", "#414487", "#2a788e", "#22a884", "#7ad151", "#fde725")
 ZOOM_HALF_LENGTH_M = 40.0
 ZOOM_HALF_WIDTH_M = 12.0
-MAX_NEIGHBOUR_PATHS = 60
+MAX_NEIGHBOUR_PATHS = 10
+MAX_LANE_POINTS = 60
+EGO_PATH_POINTS = 90  # points of the ego path drawn  # points per lane outline drawn
 
 
 def _viridis(frac: np.ndarray) -> list[str]:
@@ -72,9 +74,19 @@ class _View:
             self.sy
 
     def pts(self, px: np.ndarray, py: np.ndarray) -> str:
+        """SVG points in whole pixels, a repeated pixel dropped (a page per run stays
+        small; the view is drawn at 1 px per unit)."""
         u, v = self.to_px(px, py)
-        return " ".join(f"{p:.1f},{q:.1f}" for p, q in zip(u, v, strict=True)
-                        if math.isfinite(p) and math.isfinite(q))
+        out: list[str] = []
+        last = ""
+        for p, q in zip(u, v, strict=True):
+            if not (math.isfinite(p) and math.isfinite(q)):
+                continue
+            text = f"{int(round(p))},{int(round(q))}"
+            if text != last:
+                out.append(text)
+                last = text
+        return " ".join(out)
 
     def in_view(self, px: np.ndarray, py: np.ndarray, margin: float = 60.0) -> np.ndarray:
         la, lb = self.local(px, py)
@@ -137,7 +149,6 @@ def _view(rec: RunRecord, width: int, max_height: int, zoom_row: int | None) -> 
 def _lanes(rec: RunRecord, v: _View) -> list[str]:
     allow = rec.info.allow_shoulder
     out: list[str] = []
-    edges: list[str] = []
     for lane in rec.road.lanes:
         shape = np.asarray(lane.shape_xy_m, dtype=np.float64).reshape(-1, 2)
         if shape.shape[0] < 2:
@@ -152,6 +163,9 @@ def _lanes(rec: RunRecord, v: _View) -> list[str]:
             view[:] = True
         idx = np.flatnonzero(view)
         part = shape[max(int(idx[0]) - 1, 0):min(int(idx[-1]) + 2, shape.shape[0])]
+        if part.shape[0] > MAX_LANE_POINTS:
+            keep = np.unique(np.linspace(0, part.shape[0] - 1, MAX_LANE_POINTS).astype(int))
+            part = part[keep]
         left = _offset_polyline(part, lane.width_m / 2)
         right = _offset_polyline(part, -lane.width_m / 2)
         ring = np.vstack([left, right[::-1]])
@@ -160,12 +174,10 @@ def _lanes(rec: RunRecord, v: _View) -> list[str]:
         else:
             fill = "#d4d8de" if lane.drivable(allow) else "#f1c9c9"
         title = esc(f"{lane.id}{' (shoulder)' if lane.is_shoulder else ''}")
-        out.append(f'<polygon points="{v.pts(ring[:, 0], ring[:, 1])}" fill="{fill}">'
-                   f"<title>{title}</title></polygon>")
-        for side in (left, right):
-            edges.append(f'<polyline points="{v.pts(side[:, 0], side[:, 1])}" fill="none" '
-                         'stroke="#ffffff" stroke-width="1" stroke-dasharray="8 6"/>')
-    return out + edges
+        # the outline's white dashes are the lane markings (no separate edge lines)
+        out.append(f'<polygon points="{v.pts(ring[:, 0], ring[:, 1])}" fill="{fill}" '
+                   f'class="lane"><title>{title}</title></polygon>')
+    return out
 
 
 def _neighbour_paths(rec: RunRecord, v: _View) -> list[str]:
@@ -180,8 +192,8 @@ def _neighbour_paths(rec: RunRecord, v: _View) -> list[str]:
         if span.stop - span.start < 2:
             continue
         gx, gy = gx[span], gy[span]
-        if gx.size > 80:
-            k = np.unique(np.linspace(0, gx.size - 1, 80).astype(int))
+        if gx.size > 16:
+            k = np.unique(np.linspace(0, gx.size - 1, 16).astype(int))
             gx, gy = gx[k], gy[k]
         out.append(f'<polyline points="{v.pts(gx, gy)}" fill="none" stroke="#334155" '
                    f'stroke-opacity="0.35" stroke-width="1.2"><title>{esc(vid)}</title>'
@@ -227,6 +239,7 @@ def _focus_boxes(rec: RunRecord, v: _View, corners: np.ndarray) -> list[str]:
     out = []
     nb = rec.neighbours
     now = nb.take(nb.step == rec.trace.step[v.focus_row])
+    now = now.take(v.in_view(now.x_m, now.y_m, 5.0))  # only the boxes inside the window
     for i in range(len(now)):
         nc = box_corners(now.x_m[i], now.y_m[i], now.heading_rad[i], now.length_m[i],
                          now.width_m[i])
@@ -277,8 +290,8 @@ def _speed_path(rec: RunRecord, v: _View) -> list[str]:
     v0, v1 = _speed_range(speed)
     span = v.visible_part(x, y)
     px, py, sp = x[span], y[span], speed[span]
-    if px.size > MAX_POINTS:
-        k = np.unique(np.linspace(0, px.size - 1, MAX_POINTS).astype(int))
+    if px.size > EGO_PATH_POINTS:
+        k = np.unique(np.linspace(0, px.size - 1, EGO_PATH_POINTS).astype(int))
         px, py, sp = px[k], py[k], sp[k]
     colours = _viridis((sp - v0) / max(v1 - v0, 1e-6))
     out = []

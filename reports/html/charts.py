@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MAX_POINTS = 400
+MAX_POINTS = 120
 PALETTE = ("#2563eb", "#ea580c", "#059669", "#9333ea", "#db2777", "#0891b2", "#65a30d",
            "#b45309")
 ESC = html.escape
@@ -42,24 +42,28 @@ def fmt(value: float, digits: int = 4) -> str:
 
 def decimate(x: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS
              ) -> tuple[np.ndarray, np.ndarray]:
-    """At most ``max_points`` samples of (x, y): per bucket the min and max of y (in order)."""
+    """At most ``max_points`` samples of (x, y): per bucket of consecutive samples the
+    min and the max of y, in order (extremes survive; a bucket without a finite y
+    keeps its first sample)."""
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
     n = y.size
     if n <= max_points:
         return x, y
-    keep: list[int] = []
-    for bucket in np.array_split(np.arange(n), max(1, max_points // 2)):
-        vals = y[bucket]
-        ok = np.isfinite(vals)
-        if not np.any(ok):
-            keep.append(int(bucket[0]))
-            continue
-        lo = int(bucket[np.flatnonzero(ok)[np.argmin(vals[ok])]])
-        hi = int(bucket[np.flatnonzero(ok)[np.argmax(vals[ok])]])
-        keep.extend(sorted({lo, hi}))
-    idx = np.array(keep, dtype=int)
-    return x[idx], y[idx]
+    buckets = max(1, max_points // 2)
+    edges = np.linspace(0, n, buckets + 1).astype(int)
+    starts, size = edges[:-1], int(np.max(np.diff(edges)))
+    idx = np.minimum(starts[:, None] + np.arange(size)[None, :], n - 1)
+    inside = np.arange(size)[None, :] < np.diff(edges)[:, None]
+    vals = np.where(inside, y[idx], np.nan)
+    finite = np.isfinite(vals)
+    lo = np.argmin(np.where(finite, vals, np.inf), axis=1)
+    hi = np.argmax(np.where(finite, vals, -np.inf), axis=1)
+    none = ~finite.any(axis=1)
+    lo[none] = 0
+    hi[none] = 0
+    keep = np.unique(np.concatenate([idx[np.arange(buckets), lo], idx[np.arange(buckets), hi]]))
+    return x[keep], y[keep]
 
 
 # --------------------------------------------------------------------------- charts
@@ -78,23 +82,31 @@ class Series:
 
 
 def nice_ticks(lo: float, hi: float, n: int = 5) -> list[float]:
-    """Round tick values covering [lo, hi]."""
+    """Round tick values in [lo, hi]: steps of 1, 2, 2.5 or 5 × 10^k, the smallest one
+    giving at most n + 1 ticks, or a finer one when that leaves fewer than 3."""
     if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
         return [lo] if math.isfinite(lo) else []
-    raw = (hi - lo) / n
-    mag = 10 ** math.floor(math.log10(raw))
-    step = mag
-    for m in (1, 2, 2.5, 5, 10):
-        step = m * mag
-        if (hi - lo) / step <= n:
+    mag = 10 ** math.floor(math.log10((hi - lo) / n))
+    steps = [m * mag * f for f in (0.1, 1.0, 10.0) for m in (1, 2, 2.5, 5)]
+
+    def ticks_for(step: float) -> list[float]:
+        start = math.ceil(lo / step - 1e-9) * step
+        out, k = [], 0
+        while start + k * step <= hi + step * 1e-9:
+            v = round(start + k * step, 12)
+            out.append(0.0 if abs(v) < step * 1e-9 else v)
+            k += 1
+        return out
+
+    chosen: list[float] = []
+    for step in steps:
+        ticks = ticks_for(step)
+        if len(ticks) <= n + 1:
+            if len(ticks) >= 3 or not chosen:
+                chosen = ticks
             break
-    start = math.ceil(lo / step) * step
-    ticks = []
-    v = start
-    while v <= hi + step * 1e-9:
-        ticks.append(0.0 if abs(v) < step * 1e-9 else v)
-        v += step
-    return ticks
+        chosen = ticks if len(ticks) <= n + 3 else chosen
+    return chosen
 
 
 def _log_ticks(lo: float, hi: float, n: int = 6) -> list[float]:
@@ -105,16 +117,36 @@ def _log_ticks(lo: float, hi: float, n: int = 6) -> list[float]:
 
 
 def _path(px: np.ndarray, py: np.ndarray) -> str:
+    """SVG path data through the finite points, in whole pixels: an absolute move at
+    each start, then relative steps between the rounded positions (no drift), repeated
+    pixels dropped; a gap (non-finite point) lifts the pen."""
     parts: list[str] = []
-    pen = False
+    last: tuple[int, int] | None = None
+    pending = (0, 0)  # a relative step not written yet (collinear steps merge into it)
+
+    def flush() -> None:
+        if pending != (0, 0):
+            parts.append(f"l{pending[0]} {pending[1]}")
+
     for a, b in zip(px, py, strict=True):
         if not (math.isfinite(a) and math.isfinite(b)):
-            pen = False
+            flush()
+            pending, last = (0, 0), None
             continue
-        parts.append(f"{'L' if pen else 'M'}{a:.1f} {b:.1f}")
-        pen = True
+        point = (int(round(a)), int(round(b)))
+        if last is None:
+            parts.append(f"M{point[0]} {point[1]}")
+        elif point != last:
+            step = (point[0] - last[0], point[1] - last[1])
+            cross = pending[0] * step[1] - pending[1] * step[0]
+            if pending != (0, 0) and cross == 0 and pending[0] * step[0] + pending[1] * step[1] > 0:
+                pending = (pending[0] + step[0], pending[1] + step[1])
+            else:
+                flush()
+                pending = step
+        last = point
+    flush()
     return "".join(parts)
-
 
 
 
@@ -128,15 +160,22 @@ def _to_axis(values: np.ndarray | float, log: bool) -> np.ndarray:
     return v
 
 
-def _tick_labels(ticks: Sequence[float], log: bool) -> list[str]:
+def tick_decimals(ticks: Sequence[float]) -> int:
+    """The fewest decimals that print every tick exactly (2.5-steps need one more than
+    their magnitude: 17.5, not 18)."""
+    for decimals in range(0, 13):
+        if all(abs(round(v, decimals) - v) <= 1e-9 * max(1.0, abs(v)) for v in ticks):
+            return decimals
+    return 12
+
+
+def tick_labels(ticks: Sequence[float], log: bool = False) -> list[str]:
+    """Labels equal to the tick values (log axes: 10^v with 3 digits)."""
     if log:
         return [fmt(10 ** v, 3) for v in ticks]
-    step = min((b - a for a, b in zip(ticks, ticks[1:], strict=False)), default=1.0)
-    decimals = max(0, math.ceil(-math.log10(step) - 1e-9)) if step > 0 else 0
-    if decimals == 0:
-        return [f"{v:.0f}" for v in ticks]
-    labels = [f"{v:.{decimals + 1}f}".rstrip("0").rstrip(".") for v in ticks]
-    return [lb if lb not in ("-0", "") else "0" for lb in labels]
+    decimals = tick_decimals(ticks)
+    labels = [f"{v:.{decimals}f}" for v in ticks]
+    return ["0" if float(lb) == 0 else lb.replace("-", "−") for lb in labels]
 
 
 @dataclass(frozen=True)
@@ -171,8 +210,10 @@ class _Plot:
 
 
 def _plot_range(xs: np.ndarray, ys: np.ndarray, hlines: Sequence[Line], ylog: bool,
-                width: int, height: int) -> _Plot:
-    """Data bounds widened to the reference lines, a flat signal given a band, 6 % pad."""
+                width: int, height: int, min_span: float = 0.0) -> _Plot:
+    """Data bounds widened to the reference lines and to at least ``min_span`` (in the
+    quantity's unit, around the data's middle: noise of 0.015 m/s never fills a speed
+    axis), a flat signal given a band, 6 % pad."""
     x0, x1 = float(xs.min()), float(xs.max())
     y0, y1 = float(ys.min()), float(ys.max())
     for value, _, _ in hlines:
@@ -181,8 +222,11 @@ def _plot_range(xs: np.ndarray, ys: np.ndarray, hlines: Sequence[Line], ylog: bo
             y0, y1 = min(y0, tv), max(y1, tv)
     if x1 <= x0:
         x0, x1 = x0 - 0.5, x1 + 0.5
-    min_span = 0.5 if ylog else max(1e-12, 1e-6 * max(abs(y0), abs(y1)))
-    if y1 - y0 < min_span:  # flat (or numerically flat) signal: show a sensible band
+    if not ylog and y1 - y0 < min_span:
+        mid = 0.5 * (y0 + y1)
+        y0, y1 = mid - 0.5 * min_span, mid + 0.5 * min_span
+    flat = 0.5 if ylog else max(1e-12, 1e-6 * max(abs(y0), abs(y1)))
+    if y1 - y0 < flat:  # flat (or numerically flat) signal: show a sensible band
         mid = 0.5 * (y0 + y1)
         pad = max(abs(mid) * 0.1, 0.1) if not ylog else 0.5
         y0, y1 = mid - pad, mid + pad
@@ -191,19 +235,21 @@ def _plot_range(xs: np.ndarray, ys: np.ndarray, hlines: Sequence[Line], ylog: bo
 
 
 def _axes(p: _Plot, xlog: bool, ylog: bool, xlabel: str, ylabel: str) -> list[str]:
+    """Gridlines as one path (vertical ``M x top v h``, horizontal ``M left y h w``)
+    and tick labels: a y label sits 3 px below its gridline (``y = line + 3``)."""
     out = []
+    grid: list[str] = []
     xticks = _log_ticks(p.x0, p.x1) if xlog else nice_ticks(p.x0, p.x1, 8)
     yticks = _log_ticks(p.y0, p.y1) if ylog else nice_ticks(p.y0, p.y1, 4)
-    for v, label in zip(xticks, _tick_labels(xticks, xlog), strict=True):
+    for v, label in zip(xticks, tick_labels(xticks, xlog), strict=True):
         px = p.ml + float(p.mx(v))
-        out.append(f'<line x1="{px:.1f}" y1="{p.mt}" x2="{px:.1f}" y2="{p.mt + p.ph}" '
-                   f'class="grid"/><text x="{px:.1f}" y="{p.mt + p.ph + 13}" class="tick" '
-                   f'text-anchor="middle">{esc(label)}</text>')
-    for v, label in zip(yticks, _tick_labels(yticks, ylog), strict=True):
+        grid.append(f"M{px:.1f} {p.mt}v{p.ph}")
+        out.append(f'<text x="{px:.1f}" y="{p.mt + p.ph + 13}" class="xt">{esc(label)}</text>')
+    for v, label in zip(yticks, tick_labels(yticks, ylog), strict=True):
         py = p.mt + float(p.my(v))
-        out.append(f'<line x1="{p.ml}" y1="{py:.1f}" x2="{p.ml + p.pw}" y2="{py:.1f}" '
-                   f'class="grid"/><text x="{p.ml - 4}" y="{py + 3:.1f}" class="tick" '
-                   f'text-anchor="end">{esc(label)}</text>')
+        grid.append(f"M{p.ml} {py:.2f}h{p.pw}")
+        out.append(f'<text x="{p.ml - 4}" y="{py + 3:.2f}" class="yt">{esc(label)}</text>')
+    out.insert(0, f'<path d="{"".join(grid)}" class="grid"/>')
     out.append(f'<rect x="{p.ml}" y="{p.mt}" width="{p.pw}" height="{p.ph}" class="frame"/>')
     out.append(f'<text x="{p.ml + p.pw}" y="{p.height - 3}" class="tick" text-anchor="end">'
                f"{esc(xlabel)}</text>")
@@ -252,9 +298,14 @@ def _legend(p: _Plot, series: Sequence[Series], inside: bool) -> list[str]:
 def line_chart(series: Sequence[Series], *, title: str, ylabel: str = "",
                xlabel: str = "t [s]", width: int = 860, height: int = 170,
                xlog: bool = False, ylog: bool = False, hlines: Iterable[Line] = (),
-               vlines: Iterable[Line] = (), legend_inside: bool = False) -> str:
-    """Inline SVG line chart. hlines/vlines: (value, colour, label). The legend runs along
-    the top edge, or (``legend_inside``) stacked in the plot's lower-right corner."""
+               vlines: Iterable[Line] = (), legend_inside: bool = False,
+               min_span: float = 0.0) -> str:
+    """Inline SVG line chart of one quantity (``ylabel`` names its unit). hlines/vlines:
+    (value, colour, label). ``min_span``: the smallest y range shown [unit]. The legend
+    runs along the top edge, or (``legend_inside``) stacked in the plot's lower-right
+    corner. The svg carries its y axis as ``data-y0``/``data-y1`` (bottom/top value,
+    log10 on a log axis), ``data-top``/``data-h`` (plot area [px]) so that a reader
+    can map a gridline's pixel back to its value."""
     hl, vl = list(hlines), list(vlines)
     data = [(s, *decimate(_to_axis(s.x, xlog), _to_axis(s.y, ylog))) for s in series]
     xs = np.concatenate([d[1] for d in data]) if data else np.zeros(0)
@@ -262,9 +313,11 @@ def line_chart(series: Sequence[Series], *, title: str, ylabel: str = "",
     xs, ys = xs[np.isfinite(xs)], ys[np.isfinite(ys)]
     if xs.size == 0 or ys.size == 0:
         return f'<div class="nodata">{esc(title)}: no data</div>'
-    p = _plot_range(xs, ys, hl, ylog, width, height)
+    p = _plot_range(xs, ys, hl, ylog, width, height, min_span)
     out = [f'<svg class="chart" width="{width}" height="{height}" '
-           f'viewBox="0 0 {width} {height}" role="img">', f"<title>{esc(title)}</title>",
+           f'viewBox="0 0 {width} {height}" role="img" data-y0="{p.y0!r}" data-y1="{p.y1!r}" '
+           f'data-top="{p.mt}" data-h="{p.ph}" data-log="{int(ylog)}">',
+           f"<title>{esc(title)}</title>",
            f'<text x="{p.ml}" y="14" class="ct">{esc(title)}</text>']
     out += _axes(p, xlog, ylog, xlabel, ylabel)
     out.append(f'<svg x="{p.ml}" y="{p.mt}" width="{p.pw}" height="{p.ph}" '

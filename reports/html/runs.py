@@ -1,82 +1,132 @@
-"""One collapsible section per run in report.html: the stored metrics (failed ones
-highlighted), where the run failed, its bird's-eye views and time series.
+"""The plots of one run: one quantity per chart, its unit on the axis, its limit drawn.
 
-Plotted signals are the trace's (speed, lateral deviation, steering, gap, residual) and
-the stored series the metrics are extremes of (SG-smoothed accelerations, TTC); the
-limits drawn are the verdict's criteria. Nothing is recomputed here.
+Every chart plots the trace's signals or the stored series the metrics are extremes
+of (SG-smoothed accelerations, jerk, yaw rate, TTC); the limits drawn are the
+verdict's criteria in force (both signs for a bound on an absolute value). Each
+quantity has a smallest y range (:data:`MIN_SPAN`) so that noise never fills an axis
+(0.015 m/s of speed ripple is drawn as the ripple it is).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from reports.html.birdseye import birdseye_svg
 from reports.html.charts import PALETTE, Line, Series, esc, fmt, line_chart
-from reports.html.marks import Mark, failure_marks
+from reports.html.marks import Mark
 from reports.metrics.evaluate import REQUIRED_METRICS
 from reports.record import RunRecord, Verdict
 from reports.tables import RunEntry
 
-# shown after the required metrics when the verdict has them
-EXTRA_GRID_METRICS = ("progress_ratio", "max_offroad_m", "shoulder_s", "min_ttc_rear_s",
-                      "ssm_ttc_min_s", "outer_ms_p99", "inner_ms_p99", "guards", "steps")
 TTC_PLOT_CAP_S = 10.0
+LIMIT_COLOUR = "#dc2626"
+# smallest y range shown per quantity, in its unit
+MIN_SPAN = {"m/s": 2.0, "m": 0.5, "m/s²": 1.0, "m/s³": 2.0, "rad/s": 0.1, "rad": 0.02,
+            "gap m": 5.0, "s": 2.0}
 
 
-def run_anchor(run: RunEntry) -> str:
-    """The element id of a run's section."""
-    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in run.run_id)
-    return f"run-{safe}"
+@dataclass(frozen=True)
+class Limit:
+    """A criterion drawn as a horizontal line: its name, label, and whether it bounds
+    an absolute value (drawn at ±limit)."""
+
+    criterion: str
+    label: str
+    symmetric: bool = False
 
 
-def badge(status: str) -> str:
-    """Coloured status label."""
-    return f'<span class="badge {esc(status)}">{esc(status)}</span>'
-
-
-def zoom_focus(run: RunEntry, marks: list[Mark]) -> tuple[int, str] | None:
-    """Where to zoom the bird's-eye view: the first mark, else the closest approach (the
-    stored worst step of ``min_gap_m``) when one was recorded."""
-    if marks:
-        return marks[0].row, marks[0].name
-    gap = run.verdict.metric("min_gap_m") if run.verdict is not None else None
-    if gap is None or gap.worst_step is None:
-        return None
-    return gap.worst_step, f"closest approach ({fmt(gap.value, 3)} m)"
-
-
-def _limit_lines(verdict: Verdict | None, names: tuple[tuple[str, str], ...]) -> list[Line]:
-    limits = verdict.criteria if verdict is not None else {}
+def limit_lines(verdict: Verdict | None, limits: tuple[Limit, ...]) -> list[Line]:
+    """The limits in force of ``limits`` as reference lines."""
+    criteria = verdict.criteria if verdict is not None else {}
     out: list[Line] = []
-    for name, label in names:
-        limit = limits.get(name)
-        if limit is not None:
-            out.append((float(limit), "#fca5a5", label))
+    for lim in limits:
+        value = criteria.get(lim.criterion)
+        if value is None:
+            continue
+        out.append((float(value), LIMIT_COLOUR, f"{lim.label} {fmt(value)}"))
+        if lim.symmetric:
+            out.append((-float(value), LIMIT_COLOUR, f"{lim.label} −{fmt(value)}"))
     return out
+
+
+def _chart(series: list[Series], title: str, unit: str, vl: list[Line], hl: list[Line],
+           span_key: str = "") -> str:
+    return line_chart(series, title=title, ylabel=unit, vlines=vl, hlines=hl,
+                      min_span=MIN_SPAN.get(span_key or unit, 0.0))
+
+
+def _speed_and_path(rec: RunRecord, t: np.ndarray, vl: list[Line]) -> list[str]:
+    ego = rec.trace.ego
+    return [
+        _chart([Series("speed", t, ego.speed_mps, PALETTE[0]),
+                Series("set-point", t, rec.trace.decision.target_speed_mps, "#64748b",
+                       dash=True)], "speed", "m/s", vl, []),
+        _chart([Series("lateral deviation", t, ego.lat_dev_m, PALETTE[2])],
+               "lateral deviation from the reference (left +)", "m", vl,
+               [(0.0, "#94a3b8", "reference")]),
+    ]
+
+
+def _failed(verdict: Verdict | None, *metrics: str) -> bool:
+    return verdict is not None and any(f.metric in metrics for f in verdict.failures)
+
+
+def _comfort(rec: RunRecord, verdict: Verdict | None, t: np.ndarray, vl: list[Line]
+             ) -> list[str]:
+    """Accelerations always; jerk and yaw rate when one of their criteria failed (the
+    Rerun log has them all)."""
+    se = rec.series
+    if se is None:
+        return []
+    charts = [
+        _chart([Series("long acc (smoothed)", t, se.long_acc_mps2, PALETTE[0])],
+               "longitudinal acceleration", "m/s²", vl, limit_lines(verdict, (
+                   Limit("min_long_acc_mps2", "min"), Limit("max_long_acc_mps2", "max")))),
+        _chart([Series("lat acc (smoothed)", t, se.lat_acc_mps2, PALETTE[1])],
+               "lateral acceleration", "m/s²", vl,
+               limit_lines(verdict, (Limit("max_abs_lat_acc_mps2", "|lat acc| ≤", True),)))]
+    if _failed(verdict, "max_abs_long_jerk_mps3", "max_abs_jerk_mps3"):
+        charts.append(_chart(
+            [Series("long jerk", t, se.long_jerk_mps3, PALETTE[3]),
+             Series("|jerk|", t, se.jerk_mps3, PALETTE[5], dash=True)], "jerk", "m/s³", vl,
+            limit_lines(verdict, (Limit("max_abs_long_jerk_mps3", "|long jerk| ≤", True),
+                                  Limit("max_abs_jerk_mps3", "|jerk| ≤")))))
+    if _failed(verdict, "max_abs_yaw_rate_radps", "max_abs_yaw_acc_radps2"):
+        charts.append(_chart(
+            [Series("yaw rate (smoothed)", t, se.yaw_rate_radps, PALETTE[4])], "yaw rate",
+            "rad/s", vl,
+            limit_lines(verdict, (Limit("max_abs_yaw_rate_radps", "|yaw rate| ≤", True),))))
+    return charts
 
 
 def _steering(rec: RunRecord, t: np.ndarray, vl: list[Line]) -> str:
     steer = [Series("steer", t, rec.trace.ego.steer_rad, PALETTE[3])]
-    # the two-loop controller's split of the command, when it declares it
     for name, label, colour in (("steer_outer_rad", "outer", PALETTE[5]),
                                 ("steer_corr_rad", "inner corr", PALETTE[4])):
         values = rec.trace.extra.get(name)
         if values is not None and np.any(np.isfinite(values) & (values != 0)):
             steer.append(Series(label, t, values, colour, dash=True, width=1.2))
-    return line_chart(steer, title="steering (front-wheel angle)", ylabel="rad", vlines=vl)
+    return _chart(steer, "steering (front-wheel angle)", "rad", vl, [])
 
 
-def _gap_ttc(rec: RunRecord, verdict: Verdict | None, t: np.ndarray, vl: list[Line]) -> str:
+def _safety(rec: RunRecord, verdict: Verdict | None, t: np.ndarray, vl: list[Line]
+            ) -> list[str]:
+    out = []
     gap = rec.trace.safety.min_gap_m
-    ttc = np.minimum(rec.series.ttc_s, TTC_PLOT_CAP_S) if rec.series is not None \
-        else np.full(len(t), np.nan)
-    if not (np.any(np.isfinite(gap)) or np.any(ttc < TTC_PLOT_CAP_S)):
-        return ""
-    return line_chart([Series("gap [m]", t, np.where(np.isfinite(gap), gap, np.nan),
-                              PALETTE[6]),
-                       Series(f"TTC ahead [s] (≤{TTC_PLOT_CAP_S:g})", t, ttc, PALETTE[4])],
-                      title="gap and time to collision", ylabel="m / s", vlines=vl,
-                      hlines=_limit_lines(verdict, (("min_ttc_s", "TTC limit"),)))
+    if np.any(np.isfinite(gap)):
+        out.append(_chart([Series("gap to the nearest vehicle", t,
+                                  np.where(np.isfinite(gap), gap, np.nan), PALETTE[6])],
+                          "gap (box to box)", "m", vl,
+                          limit_lines(verdict, (Limit("min_gap_m", "min"),)), "gap m"))
+    if rec.series is not None:
+        ttc = np.where(np.isposinf(rec.series.ttc_s), TTC_PLOT_CAP_S,
+                       np.minimum(rec.series.ttc_s, TTC_PLOT_CAP_S))
+        if _failed(verdict, "min_ttc_s") or np.any(ttc < TTC_PLOT_CAP_S):
+            out.append(_chart([Series(f"TTC ahead (none = {TTC_PLOT_CAP_S:g})", t, ttc,
+                                      PALETTE[4])], "time to collision ahead", "s", vl,
+                              limit_lines(verdict, (Limit("min_ttc_s", "min"),))))
+    return out
 
 
 def _residual(rec: RunRecord, t: np.ndarray, vl: list[Line]) -> str:
@@ -86,78 +136,50 @@ def _residual(rec: RunRecord, t: np.ndarray, vl: list[Line]) -> str:
     pos = residual[np.isfinite(residual) & (residual > 0)]
     ylog = bool(pos.size and pos.max() / max(pos.min(), 1e-300) > 100)
     return line_chart([Series("residual E", t, residual, PALETTE[7])],
-                      title="outer-loop residual E = ‖F‖∞", ylabel="E", ylog=ylog, vlines=vl)
+                      title="outer-loop residual E = ‖F‖∞", ylabel="-", ylog=ylog, vlines=vl)
 
 
 def time_series(run: RunEntry, marks: list[Mark]) -> str:
-    """The per-run time-series charts."""
+    """Every chart of a run (module doc), failure marks as vertical lines."""
     rec = run.record
     if rec is None or len(rec.trace) == 0:
         return '<div class="nodata">no trace</div>'
     t = rec.trace.t_s
     vl: list[Line] = [(float(t[m.row]), m.colour, m.label) for m in marks if 0 <= m.row < len(t)]
-    charts = [line_chart([Series("speed", t, rec.trace.ego.speed_mps, PALETTE[0]),
-                          Series("set-point", t, rec.trace.decision.target_speed_mps,
-                                 "#64748b", dash=True)], title="speed", ylabel="m/s",
-                         vlines=vl),
-              line_chart([Series("lateral deviation", t, rec.trace.ego.lat_dev_m, PALETTE[2])],
-                         title="lateral deviation from reference", ylabel="m", vlines=vl,
-                         hlines=[(0.0, "#94a3b8", "reference")])]
-    if rec.series is not None:
-        charts.append(line_chart(
-            [Series("long acc", t, rec.series.long_acc_mps2, PALETTE[0]),
-             Series("lat acc", t, rec.series.lat_acc_mps2, PALETTE[1])],
-            title="accelerations (SG-smoothed)", ylabel="m/s²", vlines=vl,
-            hlines=_limit_lines(run.verdict, (("min_long_acc_mps2", "long acc min"),
-                                              ("max_long_acc_mps2", "long acc max")))))
-    charts += [_steering(rec, t, vl), _gap_ttc(rec, run.verdict, t, vl), _residual(rec, t, vl)]
+    charts = (_speed_and_path(rec, t, vl) + _safety(rec, run.verdict, t, vl)
+              + _comfort(rec, run.verdict, t, vl) + [_steering(rec, t, vl), _residual(rec, t, vl)])
     return "".join(charts)
 
 
-def metrics_grid(run: RunEntry) -> str:
-    """The stored key metrics of a run (unit and kind as tooltip), failed ones highlighted."""
+KIND_ORDER = ("safety", "comfort", "tracking", "health", "timing")
+
+
+def metrics_table(run: RunEntry) -> str:
+    """The run's key metrics by kind — the required ones, every one a criterion bounds
+    and every failed one — with value, unit and the limit in force; failed ones
+    highlighted (every metric is in results.csv and run.json)."""
     verdict = run.verdict
     if verdict is None or not verdict.metrics:
         return ""
+    from reports.metrics.criteria import CRITERIA_METRICS
+
+    limit_of = {metric: (crit, bound) for crit, (metric, bound) in CRITERIA_METRICS.items()}
     failed = {f.metric for f in verdict.failures}
-    cells = []
-    for name in (*REQUIRED_METRICS, *EXTRA_GRID_METRICS):
-        m = verdict.metric(name)
-        if m is None:
+    shown = set(REQUIRED_METRICS) | set(limit_of) | failed
+    rows = []
+    for kind in KIND_ORDER:
+        members = [m for m in verdict.metrics if m.kind == kind and m.name in shown]
+        if not members:
             continue
-        cls = ' class="bad"' if name in failed else ""
-        tip = esc(f"{m.unit} · {m.kind}" + (f" · {m.better} is better" if m.better != "none"
-                                            else ""))
-        cells.append(f'<div{cls} title="{tip}"><span>{esc(name)}</span><b>{fmt(m.value)}</b>'
-                     "</div>")
-    return f'<div class="grid">{"".join(cells)}</div>'
-
-
-def run_section(run: RunEntry) -> str:
-    """One collapsible run section."""
-    marks = failure_marks(run)
-    is_open = " open" if run.status != "pass" else ""
-    failed = "; ".join(f.text for f in run.failures)
-    head = (f'<summary>{badge(run.status)} <b>{esc(run.scenario)}</b> · '
-            f'<span class="ctrl">{esc(run.controller)}</span> · '
-            f'<span class="fam">{esc(run.family)}</span>'
-            + (f' <span class="why">{esc(failed)}</span>' if failed else "")
-            + "</summary>")
-    seed = run.info.seed if run.info is not None else "–"
-    body = [f'<p class="meta">run dir <code>{esc(run.run_dir)}</code> · sim '
-            f"{fmt(run.sim_time_s)} s · wall {fmt(run.wall_s)} s · seed {esc(seed)}</p>"]
-    if run.error:
-        body.append(f"<pre class=\"err\">{esc(run.error)}</pre>")
-    if marks:
-        body.append("<p class=\"marks\">" + " · ".join(
-            f'<span style="color:{m.colour}">✖ {esc(m.label)}</span>' for m in marks) + "</p>")
-    body.append(metrics_grid(run))
-    body.append(birdseye_svg(run.record, run.verdict, marks))
-    focus = zoom_focus(run, marks)
-    if focus is not None:
-        body.append(birdseye_svg(run.record, run.verdict, marks, zoom=focus))
-    body.append(time_series(run, marks))
-    text = (run.scenario + " " + run.controller + " " + run.family).lower()
-    return (f'<details class="run" id="{run_anchor(run)}" data-status="{esc(run.status)}" '
-            f'data-text="{esc(text)}"{is_open}>{head}{"".join(body)}</details>')
-
+        rows.append(f'<tr class="kindrow"><th colspan="4">{esc(kind)}</th></tr>')
+        for m in members:
+            crit = limit_of.get(m.name)
+            limit = verdict.criteria.get(crit[0]) if crit is not None else None
+            lim = f"{'≤' if crit[1] == 'max' else '≥'} {fmt(limit)}" \
+                if crit is not None and limit is not None else ""
+            unit = "" if m.unit in ("-", "") else m.unit.replace("^2", "²").replace("^3", "³")
+            cls = ' class="bad"' if m.name in failed else ""
+            rows.append(f'<tr{cls}><td class="name">{esc(m.name)}</td><td>{fmt(m.value)}</td>'
+                        f"<td>{esc(unit)}</td><td>{esc(lim)}</td></tr>")
+    return ('<table class="metrics"><thead><tr><th>metric</th><th>value</th><th>unit</th>'
+            f"<th>limit</th></tr></thead><tbody>{''.join(rows)}</tbody></table>")

@@ -1,0 +1,77 @@
+"""The failures list: what a reader of a nightly report looks at first.
+
+One row per run that did not pass (errors and timeouts first, then failures, by
+scenario): status, scenario (linked to its page's failures), variant, the first
+failed criterion with its value against the limit (units) and when, how many more
+failed, and the run's ``.rrd``. An error or timeout row carries the exception's
+last line instead of a criterion.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from reports.html.charts import esc, fmt
+from reports.html.links import Links
+from reports.record import Failure
+from reports.tables import RunEntry
+
+STATUS_ORDER = {"error": 0, "timeout": 1, "fail": 2, "pass": 3}
+
+
+def badge(status: str) -> str:
+    """Coloured status label."""
+    return f'<span class="badge {esc(status)}">{esc(status)}</span>'
+
+
+def unit_text(unit: str) -> str:
+    return "" if unit in ("", "-") else f" {unit.replace('^2', '²').replace('^3', '³')}"
+
+
+def value_vs_limit(f: Failure) -> str:
+    """``−5.31 m/s² < −4.05 m/s²`` (the failing comparison, with units)."""
+    op = "&gt;" if f.bound == "max" else "&lt;"
+    u = esc(unit_text(f.unit))
+    return f"{fmt(f.value)}{u} {op} {fmt(f.limit)}{u}"
+
+
+def when(f: Failure) -> str:
+    if f.t_s is None:
+        return "whole run"
+    return f"t = {f.t_s:.2f} s"
+
+
+def last_line(text: str) -> str:
+    lines = text.strip().splitlines()
+    return lines[-1] if lines else ""
+
+
+def failures_section(runs: Sequence[RunEntry], links: Links) -> str:
+    """The index's failures list (module doc), the first section under the header."""
+    bad = sorted((r for r in runs if r.status != "pass"),
+                 key=lambda r: (STATUS_ORDER.get(r.status, 9), r.scenario, r.label))
+    if not bad:
+        return ('<section id="failures"><h2>Failures</h2><p class="allpass">every one of '
+                f"the {len(runs)} runs passed</p></section>")
+    rows = []
+    for r in bad:
+        page = links.page_href(r.run_id)
+        rrd = links.rrd_href(r.run_dir, from_page=False)
+        head = (f"<td>{badge(r.status)}</td><td><a href=\"{esc(page)}#failures\">"
+                f"{esc(r.scenario)}</a></td><td>{esc(r.label)}</td>")
+        if r.failures and r.status == "fail" or (r.failures and not r.error):
+            f = r.failures[0]
+            more = len(r.failures) - 1
+            body = (f"<td>{esc(f.criterion)}</td><td class=\"num\">{value_vs_limit(f)}</td>"
+                    f"<td>{esc(when(f))}</td><td>{f'+{more}' if more else ''}</td>")
+        else:
+            body = (f'<td colspan="3" class="err1">{esc(last_line(r.error) or r.status)}</td>'
+                    f"<td>{f'+{len(r.failures)}' if r.failures else ''}</td>")
+        rows.append(f'<tr class="{esc(r.status)}">{head}{body}'
+                    f'<td><a href="{esc(rrd)}">run.rrd</a></td></tr>')
+    return ('<section id="failures"><h2>Failures <span class="meta">'
+            f"({len(bad)} of {len(runs)} runs did not pass)</span></h2>"
+            '<table class="failures"><thead><tr><th>status</th><th>scenario</th>'
+            "<th>controller variant</th><th>first failed criterion</th><th>value vs limit</th>"
+            "<th>when</th><th>more</th><th>Rerun log</th></tr></thead><tbody>"
+            + "".join(rows) + "</tbody></table></section>")

@@ -1,0 +1,70 @@
+"""One run's page (``report-runs/<run>.html``): why it failed, where, and its plots.
+
+Header: status, scenario, controller variant, back to the index, the run's ``.rrd``
+and directory and the command that opens the log. Then its failures (each criterion
+with value vs limit and where, ``id="failures"``), the error text of an error run, the
+metrics table (units, limits), the bird's-eye views (whole run and zoomed at the
+first failure or the closest approach) and the time series (:mod:`reports.html.runs`).
+"""
+
+from __future__ import annotations
+
+from reports.html.birdseye import birdseye_svg
+from reports.html.charts import esc, fmt
+from reports.html.failures import badge, value_vs_limit, when
+from reports.html.links import STYLE, Links
+from reports.html.marks import Mark, failure_marks
+from reports.html.runs import metrics_table, time_series
+from reports.tables import RunEntry
+
+
+def zoom_focus(run: RunEntry, marks: list[Mark]) -> tuple[int, str] | None:
+    """Where to zoom the bird's-eye view: the first mark, else the closest approach."""
+    if marks:
+        return marks[0].row, marks[0].name
+    gap = run.verdict.metric("min_gap_m") if run.verdict is not None else None
+    if gap is None or gap.worst_step is None:
+        return None
+    return gap.worst_step, f"closest approach ({fmt(gap.value, 3)} m)"
+
+
+def _failures(run: RunEntry) -> str:
+    if run.status == "pass":
+        return '<section id="failures"><p class="allpass">passed every criterion</p></section>'
+    items = []
+    for f in run.failures:
+        step = f", step {f.step}" if f.step is not None else ""
+        items.append(f"<li><b>{esc(f.criterion)}</b>: {esc(f.metric)} = {value_vs_limit(f)} "
+                     f"({esc(when(f))}{step})</li>")
+    err = f'<pre class="err">{esc(run.error)}</pre>' if run.error else ""
+    return (f'<section id="failures"><h2>Why it did not pass</h2><ul>{"".join(items)}</ul>'
+            f"{err}</section>")
+
+
+def render_run_page(run: RunEntry, links: Links, index_title: str) -> str:
+    """The page of one run (module doc)."""
+    marks = failure_marks(run)
+    rrd = links.rrd_href(run.run_dir, from_page=True)
+    run_dir = links.dir_href(run.run_dir, from_page=True)
+    info = run.info
+    seed = info.seed if info is not None else "–"
+    views = [birdseye_svg(run.record, run.verdict, marks)]
+    focus = zoom_focus(run, marks)
+    if focus is not None:
+        views.append(birdseye_svg(run.record, run.verdict, marks, zoom=focus))
+    mark_line = ("<p class=\"marks\">" + " · ".join(
+        f'<span style="color:{m.colour}">✖ {esc(m.label)}</span>' for m in marks) + "</p>"
+        if marks else "")
+    return "".join([
+        '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
+        f'<link rel="icon" href="data:,"><link rel="stylesheet" href="{STYLE}">'
+        f"<title>{esc(run.scenario)} — {esc(run.status)}</title></head><body>",
+        f'<header><h1>{badge(run.status)} {esc(run.scenario)}</h1><div class="counts">'
+        f"<span>{esc(run.label)}</span><span>family {esc(run.family)}</span>"
+        f"<span>seed {esc(seed)}</span><span>sim {fmt(run.sim_time_s)} s · wall "
+        f"{fmt(run.wall_s, 3)} s</span></div><nav><a href=\"../report.html\">← "
+        f"{esc(index_title)}</a> · <a href=\"{esc(rrd)}\">run.rrd</a> · "
+        f"<a href=\"{esc(run_dir)}\">run directory</a> · <code>hwyeval view "
+        f"{esc(run.run_dir.parent.name)}/{esc(run.run_dir.name)}</code></nav></header><main>",
+        _failures(run), mark_line, "".join(views), time_series(run, marks), metrics_table(run),
+        "</main></body></html>"])
