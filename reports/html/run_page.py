@@ -49,7 +49,9 @@ def render_run_page(run: RunEntry, links: Links, index_title: str) -> str:
     info = run.info
     seed = info.seed if info is not None else "–"
     views = [birdseye_svg(run.record, run.verdict, marks)]
-    focus = zoom_focus(run, marks)
+    # the zoomed view where it failed (a passing run's page stays small: its closest
+    # approach is in the Rerun log and the whole-run view)
+    focus = zoom_focus(run, marks) if run.status != "pass" else None
     if focus is not None:
         views.append(birdseye_svg(run.record, run.verdict, marks, zoom=focus))
     mark_line = ("<p class=\"marks\">" + " · ".join(
