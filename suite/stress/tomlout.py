@@ -1,0 +1,60 @@
+"""A TOML writer for the catalogs the stress generator writes: ``[defaults]`` and
+``[[scenario]]`` tables whose values are strings, ints, floats, bools, lists and tables
+(written inline). Floats are written so that they read back as floats (``25.0``), strings
+and keys as TOML basic strings where they are not bare keys."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+__all__ = ["dumps_catalog", "toml_value"]
+
+_BARE_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
+
+
+def _key(key: str) -> str:
+    return key if _BARE_KEY.match(key) else json.dumps(key)
+
+
+def toml_value(value: Any) -> str:
+    """One TOML value (inline tables for mappings)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise ValueError(f"TOML catalogs take finite numbers, got {value!r}")
+        text = repr(value)
+        return text if any(c in text for c in ".en") else text + ".0"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, Mapping):
+        inner = ", ".join(f"{_key(str(k))} = {toml_value(v)}" for k, v in value.items())
+        return "{ " + inner + " }" if inner else "{}"
+    if isinstance(value, Sequence):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    raise TypeError(f"no TOML form for {type(value).__name__}: {value!r}")
+
+
+def _table(name: str, body: Mapping[str, Any]) -> list[str]:
+    lines = [name]
+    sweep = body.get("sweep")
+    lines += [f"{_key(k)} = {toml_value(v)}" for k, v in body.items() if k != "sweep"]
+    if isinstance(sweep, Mapping):
+        lines += ["[scenario.sweep]", *(f"{_key(k)} = {toml_value(v)}" for k, v in sweep.items())]
+    return lines
+
+
+def dumps_catalog(header: str, defaults: Mapping[str, Any],
+                  scenarios: Sequence[Mapping[str, Any]]) -> str:
+    """The catalog's text: ``header`` as comment lines, ``[defaults]``, every scenario."""
+    lines = [f"# {line}".rstrip() for line in header.splitlines()]
+    lines += ["", *_table("[defaults]", defaults)]
+    for sc in scenarios:
+        lines += ["", *_table("[[scenario]]", sc)]
+    return "\n".join(lines) + "\n"
