@@ -363,8 +363,10 @@ def classify_collisions(ctx: RunContext) -> tuple[CollisionEvent, ...]:
     rows, contact = _neighbour_rows(ctx)
     contacts = _geometric_contacts(ctx, rows, contact)
     contacts += _reported_contacts(ctx, rows, contacts)
+    if not contacts:
+        return ()
     nb = ctx.record.neighbours
-    topology = LaneTopology.of(ctx.record.road)
+    topology = LaneTopology.of(ctx.record.road)  # only for runs that collided
     events = []
     for c in sorted(contacts, key=lambda c: (c.start, c.other_id)):
         kind = _kind(ctx, c.row, nb, c.nb_index, c.geometric)
