@@ -132,6 +132,8 @@ def timing_section(runs: Sequence[RunEntry], pools: Pools) -> str:
             if pool is None or pool.n == 0:
                 continue
             t, frac = pool.cdf()
+            if t.size == 0:  # every sample below the pool's first bin (e.g. no outer loop)
+                continue
             series.append(Series(variant, t * 1e3, frac, PALETTE[i % len(PALETTE)]))
         if not series:
             charts.append(f'<div class="nodata">CDF: {esc(title)}: no data</div>')
