@@ -157,7 +157,8 @@ def _tolerance_row(key: str, n: RunEntry, mb: MetricValue, mn: MetricValue,
     if worse < 0:
         kind = "timing_faster" if mn.kind == "timing" else "metric_improvement"
         return CompareRow(kind=kind, delta=delta, limit=limit, **common)
-    note = f"worse by {abs(delta):.4g} {mn.unit}, tolerance {limit:.4g}"
+    unit = "" if mn.unit in ("", "-") else f" {mn.unit}"
+    note = f"worse by {abs(delta):.4g}{unit}, tolerance {limit:.4g}{unit}"
     if mn.kind == "timing":
         return CompareRow(kind="timing_slower", delta=delta, limit=limit, note=note,
                           gate=tol.timing_gate, **common)

@@ -239,7 +239,7 @@ def _axes(p: _Plot, xlog: bool, ylog: bool, xlabel: str, ylabel: str) -> list[st
     and tick labels: a y label sits 3 px below its gridline (``y = line + 3``)."""
     out = []
     grid: list[str] = []
-    xticks = _log_ticks(p.x0, p.x1) if xlog else nice_ticks(p.x0, p.x1, 8)
+    xticks = _log_ticks(p.x0, p.x1) if xlog else nice_ticks(p.x0, p.x1, 6)
     yticks = _log_ticks(p.y0, p.y1) if ylog else nice_ticks(p.y0, p.y1, 4)
     for v, label in zip(xticks, tick_labels(xticks, xlog), strict=True):
         px = p.ml + float(p.mx(v))
