@@ -63,6 +63,17 @@ Keys of a scenario (all may also appear in ``[defaults]`` except ``name`` and ``
                     and the controller's options.
 ``duration_s``      required, > 0.         ``step_s``: required, <= ``duration_s``, at least
                     0.001 s and a whole number of milliseconds (SUMO's clock).
+``sumo_step_s``     SUMO's own step [s]: a whole number of milliseconds and a whole multiple
+                    (1, 2, ...) of ``step_s``. Default: the largest such multiple that is at
+                    most 0.1 s (0.1 for ``step_s = 0.02``; ``step_s`` when that is longer).
+                    The ego's controller and plant run every ``step_s``; SUMO steps every
+                    ``sumo_step_s`` with the ego's pose pushed before each of its steps;
+                    between them the other vehicles are extrapolated at constant speed
+                    along their heading and the geometric collision check still runs every
+                    ``step_s`` (docs/performance.md). ``sumo_step_s = step_s`` runs SUMO at
+                    the control rate. When SUMO's driver drives the ego (controller
+                    ``sumo``) SUMO is the ego's plant and steps every ``step_s`` whatever
+                    this key says.
 ``seed``            int in [0, 2**31 - 1]; default 0.
 ``allow_shoulder``  bool, default false: the ego may use a hard shoulder.
 ``criteria``        table name -> number: pass/fail limits overriding the defaults of the

@@ -26,6 +26,7 @@ from suite.catalog.specs import (
     Scenario,
     StalledSpec,
     TrafficSpec,
+    sumo_step_problem,
 )
 from suite.catalog.traffic_checks import check_traffic
 
@@ -37,7 +38,7 @@ _Spec = TypeVar("_Spec", EgoSpec, StalledSpec, TrafficSpec, RampTrafficSpec, Act
 # Scalar keys of a scenario and their defaults (MISSING: required).
 _SCALARS: tuple[tuple[str, Any], ...] = (
     ("duration_s", MISSING), ("step_s", MISSING), ("seed", 0), ("allow_shoulder", False),
-    ("record_radius_m", 150.0), ("timeout_s", None), ("friction", 1.0),
+    ("record_radius_m", 150.0), ("timeout_s", None), ("friction", 1.0), ("sumo_step_s", None),
 )
 
 
@@ -80,7 +81,8 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
             sweep_values=report.swept, record_radius_m=scalars["record_radius_m"],
             timeout_s=scalars["timeout_s"], friction=scalars["friction"],
             ramp_traffic=tuple(r for r in ramps if r is not None),
-            actors=tuple(a for a in actors if a is not None))
+            actors=tuple(a for a in actors if a is not None),
+            sumo_step_s=scalars.get("sumo_step_s"))
     except SpecError as exc:  # pragma: no cover - the checks above mirror these
         report.add(exc.field, exc.expected, exc.got)
         return None
@@ -102,6 +104,11 @@ def _scalars(d: dict[str, Any], report: Report) -> dict[str, Any]:
             and scalars["step_s"] > scalars["duration_s"]):
         report.add("step_s", f"a step <= duration_s ({scalars['duration_s']:g})",
                    scalars["step_s"])
+    if scalars.get("sumo_step_s") is not None and "step_s" in scalars:
+        problem = sumo_step_problem(scalars["sumo_step_s"], scalars["step_s"])
+        if problem:
+            report.add("sumo_step_s", problem, scalars["sumo_step_s"])
+            del scalars["sumo_step_s"]
     return scalars
 
 

@@ -9,7 +9,7 @@ __all__ = ["DEFAULT_KEYS", "OPTIONAL_SUBKEYS", "REQUIRED_KEYS", "SCENARIO_KEYS"]
 SCENARIO_KEYS = (
     "name", "net", "route", "ego", "stalled", "traffic", "controller", "duration_s", "step_s",
     "seed", "allow_shoulder", "criteria", "record_radius_m", "timeout_s", "friction",
-    "ramp_traffic", "actors", "sweep",
+    "ramp_traffic", "actors", "sumo_step_s", "sweep",
 )
 DEFAULT_KEYS = tuple(k for k in SCENARIO_KEYS if k not in ("name", "sweep"))
 REQUIRED_KEYS = ("name", "net", "ego", "controller", "duration_s", "step_s")

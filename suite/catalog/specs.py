@@ -24,7 +24,38 @@ from suite.catalog.frozen import FrozenMap, thaw, thaw_map
 from suite.catalog.rules import Rule
 
 __all__ = ["ActorEventSpec", "ActorSpec", "Catalog", "ControllerSpec", "EgoSpec",
-           "RampTrafficSpec", "Scenario", "StalledSpec", "TrafficSpec"]
+           "RampTrafficSpec", "Scenario", "StalledSpec", "TrafficSpec", "default_sumo_step",
+           "sumo_step_problem"]
+
+DEFAULT_SUMO_STEP_S = 0.1  # SUMO's own step by default: the field's usual 10 Hz
+
+
+def _ticks(t_s: float) -> int:
+    """``t_s`` in SUMO's milliseconds (the catalog's steps are whole milliseconds)."""
+    return int(round(t_s / rules.SUMO_TICK_S))
+
+
+def default_sumo_step(step_s: float) -> float:
+    """SUMO's step [s] when the catalog sets none: the largest whole multiple of ``step_s``
+    [s] that is at most 0.1 s (``step_s`` itself when that is longer), in whole ms."""
+    ticks = max(_ticks(step_s), 1)
+    return max(_ticks(DEFAULT_SUMO_STEP_S) // ticks, 1) * ticks * rules.SUMO_TICK_S
+
+
+def sumo_step_problem(sumo_step_s: Any, step_s: float) -> str | None:
+    """Why ``sumo_step_s`` is no SUMO step for control period ``step_s`` (None: it is):
+    a whole number of ms and a whole multiple (>= 1) of ``step_s``."""
+    problem = rules.sumo_step(sumo_step_s)
+    if problem:
+        return problem
+    ticks, base = _ticks(float(sumo_step_s)), max(_ticks(step_s), 1)
+    if ticks < base or ticks % base:
+        return f"a whole multiple (1, 2, ...) of step_s = {step_s:g} s"
+    return None
+
+
+def _optional_sumo_step(v: Any) -> str | None:
+    return None if v is None else rules.sumo_step(v)
 
 
 @dataclass(frozen=True)
@@ -276,6 +307,7 @@ class Scenario:
     friction: float = 1.0
     ramp_traffic: tuple[RampTrafficSpec, ...] = ()
     actors: tuple[ActorSpec, ...] = ()
+    sumo_step_s: float | None = None  # SUMO's step [s]; None: default_sumo_step(step_s)
 
     _RULES: ClassVar[dict[str, Rule]] = {
         "name": rules.name_rule, "family": rules.name_rule,
@@ -283,12 +315,19 @@ class Scenario:
         "seed": rules.integer(0, rules.MAX_SEED), "allow_shoulder": rules.boolean,
         "criteria": rules.number_map, "record_radius_m": rules.num(0.0, strict=True),
         "timeout_s": rules.num(0.0, strict=True, optional=True), "friction": rules.friction,
+        "sumo_step_s": _optional_sumo_step,
     }
 
     def __post_init__(self) -> None:
         rules.check_fields(self)
         if self.step_s > self.duration_s:
             raise SpecError("step_s", f"a step <= duration_s ({self.duration_s})", self.step_s)
+        if self.sumo_step_s is None:
+            object.__setattr__(self, "sumo_step_s", default_sumo_step(float(self.step_s)))
+        problem = sumo_step_problem(self.sumo_step_s, float(self.step_s))
+        if problem:
+            raise SpecError("sumo_step_s", problem, self.sumo_step_s)
+        object.__setattr__(self, "sumo_step_s", float(self.sumo_step_s))  # type: ignore[arg-type]
         if not isinstance(self.ego, EgoSpec):
             raise SpecError("ego", "an EgoSpec", self.ego)
         if not isinstance(self.controller, ControllerSpec):
@@ -328,6 +367,16 @@ class Scenario:
         """Number of simulation steps (``round(duration_s / step_s)``)."""
         return int(round(self.duration_s / self.step_s))
 
+    @property
+    def world_step_s(self) -> float:
+        """SUMO's step [s] (``sumo_step_s``, resolved in ``__post_init__``)."""
+        return float(self.sumo_step_s if self.sumo_step_s is not None else self.step_s)
+
+    @property
+    def steps_per_world_step(self) -> int:
+        """Control steps per SUMO step (``sumo_step_s / step_s``, a whole number >= 1)."""
+        return max(_ticks(self.world_step_s) // max(_ticks(self.step_s), 1), 1)
+
     def as_dict(self) -> dict[str, Any]:
         """JSON-serialisable dict of every field."""
         return {
@@ -343,6 +392,7 @@ class Scenario:
             "controller": self.controller.as_dict(),
             "duration_s": self.duration_s,
             "step_s": self.step_s,
+            "sumo_step_s": self.sumo_step_s,
             "seed": self.seed,
             "allow_shoulder": self.allow_shoulder,
             "criteria": thaw(self.criteria),

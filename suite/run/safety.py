@@ -1,14 +1,17 @@
-"""Per-step safety checks of the ego against every other vehicle (oriented boxes)."""
+"""Per-step safety checks of the ego against every other vehicle (oriented boxes).
+
+One compiled call per step (:func:`reports.metrics.geometry.nearest_box`): the ego's
+box against all the scene's vehicles at once, far ones culled by their bounding
+circles, giving the nearest box, its distance and whether any box overlaps.
+"""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from controllers.plant.vehicle_model import VehicleParams
-from reports.metrics.geometry import box_corners, box_distance, boxes_overlap, ego_box_centre
+from reports.metrics.geometry import nearest_box
 from suite.run.ego import EgoState
 from suite.world.protocol import Scene
 
@@ -34,6 +37,9 @@ class SafetyMonitor:
 
     def __init__(self, vehicle: VehicleParams) -> None:
         self.vehicle = vehicle
+        self._offset_m = float(vehicle.cg_to_box_centre_m)
+        self._length_m = float(vehicle.length_m)
+        self._width_m = float(vehicle.width_m)
 
     def check(self, ego: EgoState, scene: Scene) -> SafetySample:
         hit = bool(scene.collisions)
@@ -41,10 +47,9 @@ class SafetyMonitor:
         if tr.count == 0:
             return SafetySample(math.inf, "", False, hit)
         st = ego.state
-        cx, cy = ego_box_centre(st[0], st[1], st[2], self.vehicle.cg_to_box_centre_m)
-        ego_box = box_corners(cx, cy, st[2], self.vehicle.length_m, self.vehicle.width_m)
-        boxes = box_corners(tr.x_m, tr.y_m, tr.heading_rad, tr.length_m, tr.width_m)
-        dist = box_distance(ego_box[None], boxes)
-        i = int(np.argmin(dist))
-        overlap = bool(np.any(boxes_overlap(ego_box[None], boxes)))
-        return SafetySample(float(dist[i]), tr.ids[i], overlap, hit)
+        psi = float(st[2])
+        cx = float(st[0]) + self._offset_m * math.cos(psi)
+        cy = float(st[1]) + self._offset_m * math.sin(psi)
+        i, gap, overlap = nearest_box(cx, cy, psi, self._length_m, self._width_m, tr.x_m, tr.y_m,
+                                      tr.heading_rad, tr.length_m, tr.width_m)
+        return SafetySample(gap, tr.ids[i], overlap, hit)

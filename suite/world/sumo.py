@@ -13,6 +13,13 @@ Driven from outside, its speed mode is 32 and its lane-change mode 0 and each st
 pose is pushed with ``moveToXY(..., keepRoute=2)`` (free placement, mapped to the
 nearest lane) so that the other agents react to the plant's truth; otherwise SUMO's own
 driver model drives it, capped at the target speed.
+
+Multi-rate (:mod:`suite.world.multirate`): SUMO steps every ``scenario.sumo_step_s``
+while :meth:`SumoWorld.step` is called every control step ``step_s``; the ego's pose is
+pushed before every SUMO step, and between SUMO steps the scene holds SUMO's last state
+(its view of the ego, no new collisions) with the other vehicles extrapolated at
+constant speed along their headings. When SUMO's driver drives the ego it is the ego's
+plant, so SUMO then steps every ``step_s``.
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ from reports.record import StalledVehicle, SumoCollision
 from suite.catalog import Scenario
 from suite.road.network import RoadNetwork
 from suite.world.actors import ActorScript
+from suite.world.multirate import MultiRate, extrapolate_traffic
 from suite.world.protocol import EgoPose, Scene, WorldEgo, WorldSummary
 from suite.world.routes import EGO_ID, STALLED_PREFIX, RouteFile
 from suite.world.ssm import parse_ssm
@@ -78,6 +86,10 @@ class SumoWorld:
         self._stalled: tuple[StalledVehicle, ...] = ()
         # lane id -> (cumulative shape length scaled to the lane's length, segment headings)
         self._lane_geometry: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self.rate = MultiRate(scenario.steps_per_world_step if externally_driven else 1,
+                              float(scenario.step_s))
+        self._k = 0  # control steps since the start
+        self._held: Scene | None = None  # the scene of SUMO's last step
 
     @property
     def ssm_file(self) -> Path:
@@ -119,12 +131,23 @@ class SumoWorld:
             hits = self._advance()
         self._t_origin = self._time()
         self._stalled = self._stalled_vehicles()
-        return self._scene(hits)
+        self._k = 0
+        self._held = self._scene(hits)
+        return self._held
 
     def step(self, ego_pose: EgoPose | None) -> Scene:
-        if ego_pose is not None:
-            self._move_ego(ego_pose)
-        return self._scene(self._advance())
+        """One control step: a SUMO step (pose pushed first) every
+        ``rate.steps_per_world_step`` calls, else SUMO's last scene extrapolated."""
+        self._k += 1
+        held = self._held
+        if held is None or self.rate.is_world_step(self._k):
+            if ego_pose is not None:
+                self._move_ego(ego_pose)
+            self._held = self._scene(self._advance())
+            return self._held
+        tau = self.rate.since_world_step_s(self._k)
+        return Scene(t_s=held.t_s + tau, traffic=extrapolate_traffic(held.traffic, tau),
+                     ego=held.ego)
 
     def close(self) -> WorldSummary:
         if self._ls is not None:
@@ -149,12 +172,12 @@ class SumoWorld:
         seed = int(sc.traffic.seed) if sc.traffic is not None else int(sc.seed)
         return [
             sumo_binary(), "-n", str(sc.net_path), "-r", str(routes),
-            "--step-length", repr(float(sc.step_s)), "--seed", str(seed),
+            "--step-length", repr(self.rate.world_step_s), "--seed", str(seed),
             "--time-to-teleport", "-1", "--collision.mingap-factor", "0",
             "--collision.action", "warn", "--collision.check-junctions", "true",
             "--collision-output", str(self.work_dir / "collisions.xml"),
             "--no-step-log", "true", "--no-warnings", "true", "--duration-log.disable", "true",
-            "--default.action-step-length", repr(float(sc.step_s)),
+            "--default.action-step-length", repr(self.rate.world_step_s),
             "--lanechange.duration", "3",
         ]
 
