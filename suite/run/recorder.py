@@ -1,10 +1,15 @@
 """The Recorder role: every step's records into columnar buffers, handed over once.
 
 The trace is allocated for the whole run (:meth:`reports.record.Trace.allocate`) and
-filled by row index; neighbours and per-step controller arrays are collected as arrays
-and joined at the end. Columns are the fields of the record schema's column groups and
-of the controller's declared diagnostics dataclass, so a field the controller declares
-always reaches ``trace.parquet``.
+filled by row index. The neighbours (one row per step and vehicle within the recording
+radius) and the obstacle ellipses (one row per step and obstacle) go into growable
+column buffers (:class:`_Columns`: capacity doubled when full, so a step writes slices
+into existing arrays and allocates nothing in the common case); the ellipses are turned
+into the world frame once, at :meth:`TraceRecorder.finish`, for all steps at once. The
+controller's plan and preview arrays are kept by reference and stacked at the end.
+Columns are the fields of the record schema's column groups and of the controller's
+declared diagnostics dataclass, so a field the controller declares always reaches
+``trace.parquet``.
 """
 
 from __future__ import annotations
@@ -17,7 +22,6 @@ from typing import Protocol
 
 import numpy as np
 
-from controllers.behaviour.ellipses import ellipses_in_world
 from controllers.behaviour.types import Decision, Traffic
 from controllers.path.frenet import FrenetPath
 from controllers.protocol import Command, StepDiagnostics
@@ -51,6 +55,45 @@ def extra_diagnostics(diagnostics_type: type[StepDiagnostics]) -> tuple[str, ...
                  if f.name not in BASE_DIAGNOSTICS)
 
 
+class _Columns:
+    """Growable columns of one dtype each, filled by appending slices of ``n`` rows.
+
+    ``columns``: name -> dtype; rows are written at ``[size, size + n)`` after growing
+    every column to twice its capacity when needed (amortised O(1) per row)."""
+
+    def __init__(self, columns: dict[str, type | np.dtype], capacity: int) -> None:
+        if capacity < 1:
+            raise ValueError(f"capacity must be >= 1, got {capacity}")
+        self.size = 0
+        self.data = {name: np.empty(capacity, dtype=dtype) for name, dtype in columns.items()}
+
+    def reserve(self, n: int) -> int:
+        """Room for ``n`` more rows; returns the first row index to write."""
+        start = self.size
+        need = start + n
+        cap = next(iter(self.data.values())).shape[0]
+        if need > cap:
+            new_cap = max(need, 2 * cap)
+            for name, arr in self.data.items():
+                grown = np.empty(new_cap, dtype=arr.dtype)
+                grown[:start] = arr[:start]
+                self.data[name] = grown
+        self.size = need
+        return start
+
+    def head(self, name: str) -> np.ndarray:
+        """The filled rows of column ``name`` (a copy, owned by the caller)."""
+        return self.data[name][: self.size].copy()
+
+
+_NEIGHBOUR_NUMERIC = {"step": np.int64, "t_s": np.float64, "x_m": np.float64,
+                      "y_m": np.float64, "heading_rad": np.float64, "speed_mps": np.float64,
+                      "length_m": np.float64, "width_m": np.float64, "lane_index": np.int64,
+                      "stalled": np.bool_}
+_ELLIPSE = {"step": np.int64, "s_m": np.float64, "y_m": np.float64, "semi_a_m": np.float64,
+            "semi_b_m": np.float64}
+
+
 class TraceRecorder:
     """Columnar buffers for ``n_steps`` steps of one run."""
 
@@ -62,11 +105,13 @@ class TraceRecorder:
         self.trace = Trace.allocate(n_steps, self._extra)
         self.path = path
         self.record_radius_m = record_radius_m
+        self._radius2 = float(record_radius_m) ** 2
         self.rows = 0
-        self._nb: list[NeighbourColumns] = []
+        self._nb = _Columns(dict(_NEIGHBOUR_NUMERIC), max(64 * n_steps, 64))
+        self._nb_ids: list[str] = []
+        self._ell = _Columns(dict(_ELLIPSE), max(4 * n_steps, 16))
         self._plans: list[np.ndarray | None] = []
         self._previews: list[np.ndarray | None] = []
-        self._ellipses: list[np.ndarray] = []
 
     def record(self, step: int, t_s: float, ego: EgoState, decision: Decision, command: Command,
                safety: SafetySample, timing: StepTiming, traffic: Traffic) -> None:
@@ -94,7 +139,7 @@ class TraceRecorder:
         self._neighbours(step, t_s, ego, traffic)
         self._plans.append(command.plan_xy_m)
         self._previews.append(command.preview_xy_m)
-        self._ellipses.append(ellipses_in_world(self.path, decision.obstacles))
+        self._obstacles(i, decision)
         self.rows += 1
 
     def _ego(self, i: int, ego: EgoState) -> None:
@@ -128,37 +173,82 @@ class TraceRecorder:
             values = self._get_extra(diag)
             if len(self._extra) == 1:
                 values = (values,)
+            extra = self.trace.extra
             for name, value in zip(self._extra, values, strict=True):
-                self.trace.extra[name][i] = float(value)
+                extra[name][i] = float(value)
 
     def _neighbours(self, step: int, t_s: float, ego: EgoState, traffic: Traffic) -> None:
+        """Rows of the vehicles within the recording radius of the ego's CG."""
         if traffic.count == 0:
             return
-        keep = np.hypot(traffic.x_m - ego.state[0], traffic.y_m - ego.state[1]) \
-            <= self.record_radius_m
-        if not np.any(keep):
+        dx = traffic.x_m - ego.state[0]
+        dy = traffic.y_m - ego.state[1]
+        idx = np.flatnonzero(dx * dx + dy * dy <= self._radius2)
+        n = idx.shape[0]
+        if n == 0:
             return
-        tr = traffic.take(keep)
-        n = tr.count
-        self._nb.append(NeighbourColumns(
-            step=np.full(n, step, dtype=np.int64), t_s=np.full(n, t_s),
-            id=np.array(tr.ids, dtype=object), x_m=tr.x_m, y_m=tr.y_m,
-            heading_rad=tr.heading_rad, speed_mps=tr.speed_mps, length_m=tr.length_m,
-            width_m=tr.width_m, lane_index=tr.lane_index, stalled=tr.stalled))
+        a = self._nb.reserve(n)
+        b = a + n
+        cols = self._nb.data
+        cols["step"][a:b] = step
+        cols["t_s"][a:b] = t_s
+        for name in ("x_m", "y_m", "heading_rad", "speed_mps", "length_m", "width_m",
+                     "lane_index", "stalled"):
+            cols[name][a:b] = getattr(traffic, name)[idx]
+        ids = traffic.ids
+        self._nb_ids.extend(ids if n == traffic.count else [ids[k] for k in idx.tolist()])
+
+    def _obstacles(self, i: int, decision: Decision) -> None:
+        """The step's obstacle ellipses in the Frenet frame (world frame at finish)."""
+        ob = decision.obstacles
+        n = ob.count
+        if n == 0:
+            return
+        a = self._ell.reserve(n)
+        b = a + n
+        cols = self._ell.data
+        cols["step"][a:b] = i
+        cols["s_m"][a:b] = ob.s_m
+        cols["y_m"][a:b] = ob.y_m
+        cols["semi_a_m"][a:b] = ob.semi_a_m
+        cols["semi_b_m"][a:b] = ob.semi_b_m
+
+    def _ellipses(self) -> np.ndarray:
+        """(T, max obstacles, 6) [cx_m, cy_m, heading_rad, semi_a_m, semi_b_m, active],
+        NaN-padded: each step's ellipses in the world frame, axes along the path tangent
+        at their centre (``controllers.behaviour.ellipses.ellipses_in_world`` for every
+        step, in one vectorised pass)."""
+        e = self._ell
+        counts = np.bincount(e.data["step"][: e.size], minlength=self.rows)[: self.rows]
+        width = int(counts.max()) if counts.size else 0
+        out = np.full((self.rows, width, 6), np.nan)
+        if e.size == 0:
+            return out
+        rows = e.head("step")
+        s, y = e.head("s_m"), e.head("y_m")
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        slot = np.arange(e.size) - starts[rows]
+        x_w, y_w = self.path.to_global(s, y)
+        out[rows, slot, 0] = x_w
+        out[rows, slot, 1] = y_w
+        out[rows, slot, 2] = self.path.gamma(s)
+        out[rows, slot, 3] = e.head("semi_a_m")
+        out[rows, slot, 4] = e.head("semi_b_m")
+        out[rows, slot, 5] = 1.0
+        return out
 
     def finish(self, detection_radius_m: float) -> tuple[Trace, NeighbourColumns,
                                                          ControllerArrays]:
         """The recorded rows (the trace cut to the steps run)."""
         trace = self.trace.head(self.rows)
-        if self._nb:
-            names = NeighbourColumns.names()
-            nb = NeighbourColumns(**{name: np.concatenate([getattr(c, name) for c in self._nb])
-                                     for name in names})
+        if self._nb.size:
+            nb = NeighbourColumns(id=np.array(self._nb_ids, dtype=object),
+                                  **{name: self._nb.head(name) for name in _NEIGHBOUR_NUMERIC})
         else:
             nb = NeighbourColumns.allocate(0)
         arrays = ControllerArrays(plan_xy_m=_stack(self._plans, 2),
                                   preview_xy_m=_stack(self._previews, 2),
-                                  ellipses=_stack(list(self._ellipses), 6),
+                                  ellipses=self._ellipses(),
                                   detection_radius_m=detection_radius_m)
         return trace, nb, arrays
 

@@ -1,0 +1,89 @@
+"""The recorder's growable column buffers: neighbours and world-frame ellipses equal what
+per-step recording (``Traffic.take`` within the radius, ``ellipses_in_world``) gives,
+across buffer growth."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controllers.behaviour.ellipses import ellipses_in_world
+from controllers.behaviour.types import Decision, Obstacles, Traffic
+from controllers.path.frenet import FrenetPath
+from controllers.protocol import Command, StepDiagnostics
+from suite.run.ego import EgoState
+from suite.run.recorder import StepTiming, TraceRecorder, _Columns
+from suite.run.safety import SafetySample
+
+PATH = FrenetPath.from_polyline(np.column_stack([np.linspace(0.0, 900.0, 200),
+                                   20.0 * np.sin(np.linspace(0.0, 3.0, 200))]))
+
+
+def _traffic(rng: np.random.Generator, n: int, x0: float) -> Traffic:
+    return Traffic(ids=tuple(f"v{k}" for k in rng.permutation(200)[:n]),
+                   x_m=x0 + rng.uniform(-250.0, 250.0, n), y_m=rng.uniform(-10.0, 10.0, n),
+                   heading_rad=rng.normal(0.0, 0.1, n), speed_mps=rng.uniform(0.0, 30.0, n),
+                   length_m=rng.uniform(4.0, 12.0, n), width_m=rng.uniform(1.6, 2.5, n),
+                   lane_index=rng.integers(0, 3, n), road_id=("e0",) * n,
+                   stalled=rng.random(n) < 0.1)
+
+
+def _obstacles(rng: np.random.Generator, k: int, s0: float) -> Obstacles:
+    return Obstacles(s0 + rng.uniform(5.0, 80.0, k), rng.uniform(-3.0, 3.0, k), np.zeros(k),
+                     np.zeros(k), rng.uniform(5.0, 9.0, k), rng.uniform(1.5, 2.5, k))
+
+
+def test_buffers_equal_per_step_recording() -> None:
+    rng = np.random.default_rng(7)
+    n_steps = 60
+    rec = TraceRecorder(n_steps, StepDiagnostics, PATH, record_radius_m=150.0)
+    rec._nb = _Columns({k: v.dtype for k, v in rec._nb.data.items()}, 3)  # force growth
+    expected_nb: list[Traffic] = []
+    expected_ell: list[np.ndarray] = []
+    for step in range(n_steps):
+        x = 100.0 + 10.0 * step
+        state = np.array([x, 0.0, 0.0, 25.0, 0.0, 0.0])
+        ego = EgoState(state, 0.0, 0.0, 0.0, 0.0, x, 0.0, 0.0)
+        traffic = _traffic(rng, int(rng.integers(0, 40)), x) if step % 7 else Traffic.empty()
+        obstacles = _obstacles(rng, int(rng.integers(0, 4)), x)
+        decision = Decision(obstacles=obstacles, target_speed_mps=25.0)
+        rec.record(step, 0.02 * step, ego, decision,
+                   Command(0.0, 0.0, diagnostics=StepDiagnostics()),
+                   SafetySample(math.inf, "", False, False), StepTiming(0.0, 0.0, 0.0), traffic)
+        if traffic.count:
+            keep = np.hypot(traffic.x_m - x, traffic.y_m) <= 150.0
+            expected_nb.append(traffic.take(keep))
+        else:
+            expected_nb.append(Traffic.empty())
+        expected_ell.append(ellipses_in_world(PATH, obstacles))
+    trace, nb, arrays = rec.finish(detection_radius_m=120.0)
+    assert len(trace) == n_steps
+    steps = np.concatenate([np.full(t.count, k) for k, t in enumerate(expected_nb)])
+    np.testing.assert_array_equal(nb.step, steps)
+    np.testing.assert_allclose(nb.t_s, 0.02 * steps)
+    assert list(nb.id) == [i for t in expected_nb for i in t.ids]
+    for name in ("x_m", "y_m", "heading_rad", "speed_mps", "length_m", "width_m", "lane_index",
+                 "stalled"):
+        np.testing.assert_array_equal(getattr(nb, name),
+                                      np.concatenate([getattr(t, name) for t in expected_nb]))
+    width = max(e.shape[0] for e in expected_ell)
+    assert arrays.ellipses.shape == (n_steps, width, 6)
+    for k, e in enumerate(expected_ell):
+        np.testing.assert_allclose(arrays.ellipses[k, : e.shape[0]], e, rtol=1e-12, atol=1e-9)
+        assert np.all(np.isnan(arrays.ellipses[k, e.shape[0]:]))
+    assert arrays.detection_radius_m == 120.0
+
+
+def test_columns_grow_and_keep_their_rows() -> None:
+    cols = _Columns({"a": np.int64, "b": np.float64}, 2)
+    for k in range(10):
+        start = cols.reserve(3)
+        cols.data["a"][start:start + 3] = k
+        cols.data["b"][start:start + 3] = [k, k + 0.5, k + 0.25]
+    assert cols.size == 30
+    np.testing.assert_array_equal(cols.head("a"), np.repeat(np.arange(10), 3))
+    assert cols.head("b")[-1] == pytest.approx(9.25)
+    with pytest.raises(ValueError):
+        _Columns({"a": np.int64}, 0)
