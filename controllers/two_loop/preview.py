@@ -45,7 +45,7 @@ from controllers.path.frenet import path_gamma, path_to_global
 from controllers.plant.vehicle_model import stvm_rk4
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _stage_index(tau_nodes: np.ndarray, tau: float) -> int:
     n = tau_nodes.shape[0] - 1
     i = 0
@@ -54,7 +54,7 @@ def _stage_index(tau_nodes: np.ndarray, tau: float) -> int:
     return i
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def plan_reference(tau_nodes: np.ndarray, states: np.ndarray, speeds: np.ndarray,
                    tau: float) -> tuple[float, float, float, float, float, float]:
     """Plan at time tau: (s*, y*, theta*, V*, omega*, dV*/dtau).
@@ -88,7 +88,7 @@ def plan_reference(tau_nodes: np.ndarray, states: np.ndarray, speeds: np.ndarray
     return s, y, th, v, om, acc
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def convert(state: np.ndarray, th_ref: float, v_ref: float, om_ref: float, acc_ref: float,
             gains: np.ndarray, vp: np.ndarray) -> tuple[float, float]:
     """(delta_ol, T_ol) by (13)(14) + optional feed-forward; see module docstring.
@@ -116,7 +116,7 @@ def convert(state: np.ndarray, th_ref: float, v_ref: float, om_ref: float, acc_r
     return delta, torque
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _rk4_adaptive(x: np.ndarray, delta: float, torque: float, vp: np.ndarray,
                   dt: float) -> np.ndarray:
     """RK4 over dt, sub-stepped so that h * (fastest lateral eigenvalue) <= 1.5."""
@@ -129,7 +129,7 @@ def _rk4_adaptive(x: np.ndarray, delta: float, torque: float, vp: np.ndarray,
     return stvm_rk4(x, delta, torque, vp, dt, nsub)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def inner_step(state: np.ndarray, tau_nodes: np.ndarray, states: np.ndarray,
                speeds: np.ndarray, gains: np.ndarray, vp: np.ndarray, limits: np.ndarray,
                n_preview: int, dt_p: float, meta: np.ndarray, coef: np.ndarray,

@@ -66,7 +66,7 @@ from controllers.two_loop.outer.params import CgmresParams
 from controllers.two_loop.outer.protocol import OuterPlan
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _horizon(t: float, t_init: float, tf: float, rate: float) -> tuple[float, float]:
     a = math.exp(-rate * max(t - t_init, 0.0))
     return tf * (1.0 - a), rate * tf * a
@@ -74,7 +74,7 @@ def _horizon(t: float, t_init: float, tf: float, rate: float) -> tuple[float, fl
 
 # One compiled loop on purpose (no calls per sub-update, no allocation): its branches are
 # the GMRES iteration, the guard and the finiteness checks, hence the complexity.
-@numba.njit(cache=True, fastmath=_FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=_FM)
 def cgmres_updates(  # noqa: C901
         uvec: np.ndarray, udot: np.ndarray, x0a: np.ndarray, x0b: np.ndarray, t_a: float,
         dt_total: float, n_sub: int, hz: np.ndarray, tshift_b: float, prm: np.ndarray,

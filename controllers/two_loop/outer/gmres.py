@@ -31,7 +31,7 @@ import numpy as np
 _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
-@numba.njit(cache=True, fastmath=_FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=_FM)
 def arnoldi_mgs(vb: np.ndarray, hm: np.ndarray, j: int) -> float:
     """Orthogonalise vb[j+1] against vb[0..j] (modified Gram-Schmidt) and normalise it.
 
@@ -57,7 +57,7 @@ def arnoldi_mgs(vb: np.ndarray, hm: np.ndarray, j: int) -> float:
     return nrm
 
 
-@numba.njit(cache=True, fastmath=_FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=_FM)
 def givens_column(hm: np.ndarray, cs: np.ndarray, sn: np.ndarray, g: np.ndarray,
                   j: int) -> float:
     """Apply the previous rotations to column j of hm, make the new one, rotate g.
@@ -85,7 +85,7 @@ def givens_column(hm: np.ndarray, cs: np.ndarray, sn: np.ndarray, g: np.ndarray,
     return res
 
 
-@numba.njit(cache=True, fastmath=_FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=_FM)
 def back_substitute(hm: np.ndarray, g: np.ndarray, k: int, y: np.ndarray) -> None:
     """Solve the k x k upper-triangular system hm[:k, :k] y = g[:k] (zero on a null pivot)."""
     for i in range(k - 1, -1, -1):
@@ -96,7 +96,7 @@ def back_substitute(hm: np.ndarray, g: np.ndarray, k: int, y: np.ndarray) -> Non
         y[i] = acc / piv if abs(piv) > 1e-300 else 0.0
 
 
-@numba.njit(cache=True, fastmath=_FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=_FM)
 def combine(udot: np.ndarray, vb: np.ndarray, y: np.ndarray, k: int) -> None:
     """udot += sum_l y[l] vb[l] (l < k)."""
     n = udot.shape[0]

@@ -194,7 +194,7 @@ def obstacle_table(n_slots: int) -> np.ndarray:
     return tab
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def slot_weight(ob: np.ndarray, tshift: float) -> float:
     """Barrier weight factor clip(w + dw/dt tshift, 0, 1) of one obstacle row."""
     wgt: float = ob[7] + ob[8] * tshift
@@ -206,7 +206,7 @@ def slot_weight(ob: np.ndarray, tshift: float) -> float:
 
 
 # ----------------------------------------------------------------------------- kernels
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def constraint_eval(s: float, y: float, tau: float, ob: np.ndarray) -> tuple[float, float, float]:
     """(c, dc/ds, dc/dy) of one obstacle row ``ob`` at time offset tau [s]."""
     ds = s - (ob[0] + ob[2] * tau)
@@ -216,7 +216,7 @@ def constraint_eval(s: float, y: float, tau: float, ob: np.ndarray) -> tuple[flo
     return ds * ds * ia2 + dy * dy * ib2 - 1.0, 2.0 * ds * ia2, 2.0 * dy * ib2
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def stage_geometry(x: np.ndarray, u: np.ndarray, prm: np.ndarray, meta: np.ndarray,
                    coef: np.ndarray, geo: np.ndarray) -> None:
     """Path geometry and model terms of one stage into geo (9,).
@@ -247,7 +247,7 @@ def stage_geometry(x: np.ndarray, u: np.ndarray, prm: np.ndarray, meta: np.ndarr
     geo[8] = th
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,
                    with_constraints: bool, prm: np.ndarray, obs: np.ndarray, czw: np.ndarray,
                    geo: np.ndarray, f_out: np.ndarray, hx_out: np.ndarray,
@@ -347,7 +347,7 @@ def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,
     return hval
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def stage_eval(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float, with_constraints: bool,
                prm: np.ndarray, obs: np.ndarray, meta: np.ndarray, coef: np.ndarray,
                f_out: np.ndarray, hx_out: np.ndarray, hu_out: np.ndarray) -> float:
@@ -366,7 +366,7 @@ def stage_eval(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float, with_con
                           hu_out)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def terminal_eval(x: np.ndarray, prm: np.ndarray, meta: np.ndarray, coef: np.ndarray,
                   mx_out: np.ndarray) -> float:
     """Terminal cost m(x_N) and its gradient (3,)."""
@@ -387,7 +387,7 @@ def terminal_eval(x: np.ndarray, prm: np.ndarray, meta: np.ndarray, coef: np.nda
     return val
 
 
-@numba.njit(cache=True, fastmath=_FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=_FM)
 def ocp_residual(uvec: np.ndarray, x0: np.ndarray, horizon: float, tshift: float,
                  prm: np.ndarray, obs: np.ndarray, w: np.ndarray, meta: np.ndarray,
                  coef: np.ndarray, xs: np.ndarray, ps: np.ndarray, f_out: np.ndarray) -> None:
@@ -471,7 +471,7 @@ def ocp_residual(uvec: np.ndarray, x0: np.ndarray, horizon: float, tshift: float
                     f_out[b + 2 + k_obs + j] /= az + 1.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def ocp_objective(uvec: np.ndarray, x0: np.ndarray, horizon: float, tshift: float,
                   prm: np.ndarray, obs: np.ndarray, w: np.ndarray, meta: np.ndarray,
                   coef: np.ndarray, with_multipliers: bool = False) -> float:
@@ -509,7 +509,7 @@ def ocp_objective(uvec: np.ndarray, x0: np.ndarray, horizon: float, tshift: floa
     return total
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def stage_init(x0: np.ndarray, tshift: float, prm: np.ndarray, obs: np.ndarray,
                meta: np.ndarray, coef: np.ndarray, n: int, uvec: np.ndarray) -> None:
     """Exact solution of F = 0 for a zero-length horizon (growing-horizon start).
@@ -575,7 +575,7 @@ def stage_init(x0: np.ndarray, tshift: float, prm: np.ndarray, obs: np.ndarray,
                 uvec[b + 2 + k_obs + j] = 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def activate_slot(uvec: np.ndarray, xs: np.ndarray, horizon: float, tshift: float,
                   w: np.ndarray, prm: np.ndarray, obs: np.ndarray, j: int) -> None:
     """Initialise slot j's Z, mu along the current plan so that its own rows vanish."""
@@ -596,7 +596,7 @@ def activate_slot(uvec: np.ndarray, xs: np.ndarray, horizon: float, tshift: floa
         uvec[b + 2 + k_obs + j] = -cz * slot_weight(obs[j], tshift) / (2.0 * z * (z + zeta))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def deactivate_slot(uvec: np.ndarray, n: int, k_obs: int, j: int) -> None:
     m = 2 + 2 * k_obs
     for i in range(n):
