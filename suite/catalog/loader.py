@@ -28,7 +28,14 @@ from suite.catalog.keys import DEFAULT_KEYS, REQUIRED_KEYS, SCENARIO_KEYS
 from suite.catalog.nets import bundled_nets
 from suite.catalog.report import Report
 from suite.catalog.specs import Catalog, Scenario
-from suite.catalog.sweep import flatten_sweep, path_target, set_path, sweep_name, sweep_shorts
+from suite.catalog.sweep import (
+    flatten_sweep,
+    overlapping,
+    path_target,
+    set_path,
+    sweep_name,
+    sweep_shorts,
+)
 
 __all__ = ["load_catalog"]
 
@@ -141,12 +148,28 @@ class _Loader:
         base = merged["name"] if name_ok else (label or where)
 
         out: list[tuple[str, str, Scenario | None]] = []
-        for variant, vname, swept in self._variants(where, entry.get("sweep"), merged, base):
-            report = Report(self.err, index, vname, base, swept, set(entry))
+        variants = self._variants(where, entry.get("sweep"), merged, base)
+        if name_ok and not self._variant_names_fit(where, variants, base):
+            return []
+        for variant, vname, swept in variants:
+            report = Report(self.err, index, vname, base, swept, set(entry),
+                            name_reported=not name_ok)
             sc = build_variant(variant, report, catalog_path=self.path,
                                controllers=self.controllers, bundled=self.bundled)
             out.append((vname, where, sc if name_ok else None))
         return out
+
+    def _variant_names_fit(self, where: str, variants: list[_Variant], base: str) -> bool:
+        """Whether every sweep variant's name is short enough to name a directory (the
+        base name is checked by the name rule; the suffixes make it longer)."""
+        too_long = [vname for _, vname, _ in variants if len(vname) > rules.MAX_NAME_LEN]
+        if not too_long:
+            return True
+        self.err.add(f"{where}.name", f"a name whose sweep variants have at most "
+                     f"{rules.MAX_NAME_LEN} characters ({len(too_long)} variant(s) longer, "
+                     f"e.g. one of {len(too_long[0])}: shorten the name or the swept keys)",
+                     too_long[0], base)
+        return False
 
     def _check_keys(self, where: str, entry: dict[str, Any], label: str | None) -> None:
         for key in entry:
@@ -175,12 +198,20 @@ class _Loader:
         items = flatten_sweep(sweep_raw)
         if not self._check_sweep(where, items, merged, base):
             return [(merged, base, {})]
-        return _combinations(items, merged, base)
+        variants, problems = _combinations(items, merged, base)
+        for key, problem, vname in problems:
+            self.err.add(f"{where}.sweep.{json.dumps(key)}", problem, key, vname)
+        return variants if not problems else [(merged, base, {})]
 
     def _check_sweep(self, where: str, items: list[tuple[str, Any]], merged: dict[str, Any],
                      base: str) -> bool:
-        """Whether every swept path has a target and a non-empty list of values."""
+        """Whether every swept path has a target and a non-empty list of values, and no
+        swept path lies inside another."""
         ok = True
+        for key, outer in overlapping([k for k, _ in items]).items():
+            self.err.add(f"{where}.sweep.{json.dumps(key)}", "a swept path that is not inside "
+                         f"another swept path ({outer!r} is swept too)", key, base)
+            ok = False
         for key, values in items:
             target_ok, problem = path_target(merged, key)
             if not target_ok:
@@ -209,18 +240,22 @@ def _merge(defaults: dict[str, Any], entry: dict[str, Any]) -> dict[str, Any]:
 
 
 def _combinations(items: list[tuple[str, Any]], merged: dict[str, Any], base: str
-                  ) -> list[_Variant]:
-    """One variant per element of the cartesian product, the first key varying slowest.
-    (No items, e.g. a sweep of empty tables only, gives no variant at all.)"""
+                  ) -> tuple[list[_Variant], list[tuple[str, str, str]]]:
+    """One variant per element of the cartesian product, the first key varying slowest;
+    and the (swept key, problem, variant name) of values that could not be set."""
     keys = [k for k, _ in items]
     shorts = sweep_shorts(keys)
     value_lists = [list(enumerate(v)) for _, v in items]
     out: list[_Variant] = []
+    problems: list[tuple[str, str, str]] = []
     for combo in itertools.product(*value_lists) if value_lists else ():
         variant = copy.deepcopy(merged)
-        for key, (_, value) in zip(keys, combo, strict=True):
-            set_path(variant, key, value)
         vname = sweep_name(base, shorts, [v for _, v in combo], [p for p, _ in combo])
+        bad = [(key, problem) for key, (_, value) in zip(keys, combo, strict=True)
+               if (problem := set_path(variant, key, value)) is not None]
+        if bad:
+            problems.extend((key, problem, vname) for key, problem in bad)
+            continue
         variant["name"] = vname
         out.append((variant, vname, {k: v for k, (_, v) in zip(keys, combo, strict=True)}))
-    return out
+    return out, problems

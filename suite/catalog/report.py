@@ -21,16 +21,22 @@ class Report:
     """Adds the problems of the scenario ``name`` (of ``family``) from ``scenario[index]``."""
 
     def __init__(self, err: IssueCollector, index: int, name: str, family: str,
-                 swept: Mapping[str, Any], own_keys: Set[str]) -> None:
+                 swept: Mapping[str, Any], own_keys: Set[str], *,
+                 name_reported: bool = False) -> None:
         self.err = err
         self.where = f"scenario[{index}]"
         self.name = name
         self.family = family
         self.swept = swept
         self.own_keys = own_keys
+        # The loader reported a missing or invalid name already: the label standing in
+        # for it ('scenario[i]') is not a second problem.
+        self.name_reported = name_reported
 
     def add(self, key: str, expected: str, got: Any = MISSING) -> None:
         """One problem at ``key`` (dotted within the scenario; ``""`` = the scenario)."""
+        if key in ("name", "family") and self.name_reported:
+            return
         where = self.where
         full = f"{where}.{key}" if key else where
         from_sweep = [sk for sk in self.swept if key == sk or key.startswith(sk + ".")]

@@ -13,13 +13,16 @@ from typing import Any
 
 from suite.catalog.errors import SpecError
 
-__all__ = ["MAX_SEED", "NAME_RE", "Rule", "as_float", "boolean", "check_fields", "edge_id",
-           "friction", "integer", "is_number", "lane_change", "lane_key", "lane_speeds", "lanes",
-           "name_rule", "table_list",
-           "non_json_path", "num", "number_map"]
+__all__ = ["MAX_NAME_LEN", "MAX_SEED", "NAME_RE", "Rule", "as_float", "boolean", "check_fields",
+           "edge_id", "friction", "integer", "is_number", "lane_change", "lane_key",
+           "lane_speeds", "lanes", "name_rule", "non_json_path", "num", "number_map",
+           "table_list"]
 
 NAME_RE = re.compile(r"^[a-z0-9_]+$")
 MAX_SEED = 2**31 - 1
+# A scenario name is a directory name (OUT/<name>/, and OUT/.partial-<name>-<pid>/ while
+# it is written): file systems allow 255 bytes per name; this leaves room for the rest.
+MAX_NAME_LEN = 200
 
 Rule = Callable[[Any], str | None]
 
@@ -133,9 +136,12 @@ def boolean(v: Any) -> str | None:
 
 
 def name_rule(v: Any) -> str | None:
-    """A scenario or controller name: ``[a-z0-9_]+``."""
-    if isinstance(v, str) and NAME_RE.match(v):
+    """A scenario or controller name: ``[a-z0-9_]+``, at most :data:`MAX_NAME_LEN`
+    characters."""
+    if isinstance(v, str) and NAME_RE.match(v) and len(v) <= MAX_NAME_LEN:
         return None
+    if isinstance(v, str) and NAME_RE.match(v):
+        return f"a name of at most {MAX_NAME_LEN} characters (it names a directory), not {len(v)}"
     return "a name matching [a-z0-9_]+"
 
 

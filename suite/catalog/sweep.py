@@ -13,8 +13,8 @@ from typing import Any
 from suite.catalog.errors import type_name
 from suite.catalog.keys import DEFAULT_KEYS, OPTIONAL_SUBKEYS
 
-__all__ = ["flatten_sweep", "format_sweep_value", "path_target", "set_path", "sweep_name",
-           "sweep_shorts"]
+__all__ = ["flatten_sweep", "format_sweep_value", "overlapping", "path_target", "set_path",
+           "sweep_name", "sweep_shorts"]
 
 # ------------------------------------------------------------------ naming
 _ABBREV = {
@@ -97,14 +97,29 @@ def sweep_name(base: str, shorts: Sequence[str], values: Sequence[Any],
 
 # ------------------------------------------------------------------ paths
 def flatten_sweep(table: Mapping[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
-    """(dotted path, values) of a sweep table; nested tables (unquoted dotted keys) joined."""
+    """(dotted path, values) of a sweep table; nested tables (unquoted dotted keys) joined.
+    An empty nested table stays an item (with ``{}`` as its values: it sweeps nothing,
+    which the loader reports instead of silently expanding to no scenario)."""
     out: list[tuple[str, Any]] = []
     for k, v in table.items():
         key = f"{prefix}.{k}" if prefix else str(k)
-        if isinstance(v, Mapping):
+        if isinstance(v, Mapping) and v:
             out.extend(flatten_sweep(v, key))
         else:
             out.append((key, v))
+    return out
+
+
+def overlapping(keys: Sequence[str]) -> dict[str, str]:
+    """Swept paths inside another swept path (``"stalled.0.pos_m"`` inside
+    ``"stalled.0"``): each such key -> the path that contains it. Sweeping both would
+    make one replace what the other sets."""
+    out: dict[str, str] = {}
+    for key in keys:
+        for other in keys:
+            if other != key and key.startswith(other + "."):
+                out[key] = other
+                break
     return out
 
 
@@ -151,16 +166,30 @@ def _optional_subkey_ok(comps: list[str], root: Mapping[str, Any]) -> bool:
     return False
 
 
-def set_path(root: dict[str, Any], path: str, value: Any) -> None:
-    """Set (a copy of) ``value`` at the dotted ``path`` of a merged scenario dict."""
+def set_path(root: dict[str, Any], path: str, value: Any) -> str | None:
+    """Set (a copy of) ``value`` at the dotted ``path`` of a merged scenario dict.
+    Returns None when set, else what the path would need (the scenario is then left
+    partly set: the caller drops it); never raises for a path that does not fit."""
     comps = path.split(".")
     node: Any = root
-    for comp in comps[:-1]:
-        if isinstance(node, dict) and comp not in node:
-            node[comp] = {}  # a nested controller option table the scenario left out
-        node = node[int(comp)] if isinstance(node, list) else node[comp]
-    last = comps[-1]
-    if isinstance(node, list):
-        node[int(last)] = copy.deepcopy(value)
-    else:
-        node[last] = copy.deepcopy(value)
+    for depth, comp in enumerate(comps):
+        last = depth == len(comps) - 1
+        parent = ".".join(comps[:depth]) or "the scenario"
+        if isinstance(node, list):
+            if not comp.isdigit() or int(comp) >= len(node):
+                return f"a list index in 0..{len(node) - 1} at {parent!r}" if node \
+                    else f"an existing list item ({parent!r} is empty)"
+            if last:
+                node[int(comp)] = copy.deepcopy(value)
+                return None
+            node = node[int(comp)]
+        elif isinstance(node, dict):
+            if last:
+                node[comp] = copy.deepcopy(value)
+                return None
+            if comp not in node:
+                node[comp] = {}  # a nested controller option table the scenario left out
+            node = node[comp]
+        else:
+            return f"a path into a table or list ({parent!r} is a {type_name(node)})"
+    return None
