@@ -30,11 +30,21 @@ the reports. Written once by the runner (:func:`write_run`), read by everyone el
 
 Headings are radians counter-clockwise from +X; neighbours' positions are box centres,
 the ego's is its CG (its box centre is ``cg_to_box_centre_m`` ahead).
+
+Atomic run directories: a run is written into a staging directory beside its final place
+(:func:`staging_dir`, ``OUT/.partial-<scenario>-<pid>``) and moved there in one rename
+when complete (:func:`publish_run_dir`), replacing whatever was there before (an older
+run, a symbolic link: never followed). A run killed half-way leaves only its staging
+directory, which no reader lists (:func:`iter_run_dirs` skips names starting with a
+dot) and the executor removes (:func:`discard_staging`): ``OUT/<scenario>/`` is always
+one complete run, never an older run's files mixed with a newer one's.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -64,6 +74,8 @@ CONTROLLER_ARRAYS = "controller_arrays.npz"
 TRACEBACK = "traceback.txt"
 RRD = "run.rrd"
 RUN_FILES = (RUN_JSON, ROAD_JSON, TRACE, SERIES, NEIGHBOURS, CONTROLLER_ARRAYS, TRACEBACK, RRD)
+STAGING_PREFIX = ".partial-"  # OUT/.partial-<scenario>-<pid>: a run being written
+TRASH_PREFIX = ".replaced-"  # OUT/.replaced-<scenario>-<pid>: an older run being removed
 
 
 @dataclass
@@ -119,6 +131,17 @@ def write_run(record: RunRecord, run_dir: Path, *, run_json: bool = True) -> Non
         (run_dir / TRACEBACK).write_text(record.outcome.error)
     if run_json:
         write_run_json(record, run_dir)
+
+
+def write_run_atomic(record: RunRecord, final: Path) -> None:
+    """:func:`write_run` into a staging directory beside ``final``, then
+    :func:`publish_run_dir` it there (replacing an older run; nothing of it is kept)."""
+    stage = staging_dir(final.parent, final.name)
+    try:
+        write_run(record, stage)
+        publish_run_dir(stage, final)
+    finally:
+        remove_path(stage)  # gone already once published
 
 
 def write_run_json(record: RunRecord, run_dir: Path) -> None:
@@ -196,15 +219,70 @@ def load_run(run_dir: str | Path, *, trace: bool = True, neighbours: bool = True
                      arrays=ca, verdict=verdict, series=se, run_dir=run_dir)
 
 
+def staging_dir(out_dir: Path, name: str) -> Path:
+    """A fresh, empty staging directory for the run ``name`` under ``out_dir`` (created;
+    a leftover of this process from an earlier attempt is removed first)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stage = out_dir / f"{STAGING_PREFIX}{name}-{os.getpid()}"
+    remove_path(stage)
+    stage.mkdir()
+    return stage
+
+
+def remove_path(path: Path) -> None:
+    """Remove ``path`` whatever it is (a symbolic link is unlinked, never followed; a
+    directory removed with its content); nothing if it does not exist."""
+    if path.is_symlink() or (path.exists() and not path.is_dir()):
+        path.unlink(missing_ok=True)
+    elif path.is_dir():
+        shutil.rmtree(path, ignore_errors=True)
+
+
+def publish_run_dir(stage: Path, final: Path) -> None:
+    """Move the complete run directory ``stage`` to ``final`` (same parent), replacing
+    what ``final`` was: the old entry is first renamed out of the way (a directory
+    cannot be renamed onto a non-empty one), then removed. A reader sees the old run,
+    then briefly no run, then the new run; never a mixture."""
+    old: Path | None = None
+    if final.is_symlink() or final.exists():
+        old = final.with_name(f"{TRASH_PREFIX}{final.name}-{os.getpid()}")
+        remove_path(old)
+        os.replace(final, old)
+    os.replace(stage, final)
+    if old is not None:
+        remove_path(old)
+
+
+def discard_staging(out_dir: Path, name: str | None = None) -> list[Path]:
+    """Remove the staging and replaced-run leftovers under ``out_dir`` (of the run
+    ``name`` only, when given) that killed writers left behind; returns them."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        return []
+    found = []
+    for child in out_dir.iterdir():
+        for prefix in (STAGING_PREFIX, TRASH_PREFIX):
+            rest = child.name[len(prefix):] if child.name.startswith(prefix) else None
+            if rest is None:
+                continue
+            owner, _, pid = rest.rpartition("-")
+            if pid.isdigit() and (name is None or owner == name):
+                remove_path(child)
+                found.append(child)
+    return found
+
+
 def iter_run_dirs(out_dir: str | Path) -> list[Path]:
     """Run directories (with a run.json) directly under ``out_dir``, sorted by name.
 
     Symbolic links are not followed: a run directory is always inside ``out_dir``.
+    Hidden entries (a run being written, :func:`staging_dir`) are not runs.
     """
     out_dir = Path(out_dir)
     found = []
     for child in sorted(out_dir.iterdir()) if out_dir.is_dir() else []:
-        if child.is_symlink() or not child.is_dir():
+        if child.name.startswith(".") or child.is_symlink() or not child.is_dir():
             continue
         meta = child / RUN_JSON
         if meta.is_file() and not meta.is_symlink():

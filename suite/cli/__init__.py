@@ -1,8 +1,9 @@
 """``hwyeval`` command line (docs/cli.md).
 
     hwyeval list CATALOG [--filter GLOB] [--plugin MODULE ...]
-    hwyeval run CATALOG --out DIR [--jobs N] [--filter GLOB] [--no-log]
-                [--executor local|ray] [--ray-address ADDR] [--plugin MODULE ...]
+    hwyeval run CATALOG --out DIR [--resume | --overwrite] [--jobs N] [--filter GLOB]
+                [--no-log] [--timeout SECONDS] [--executor local|ray] [--ray-address ADDR]
+                [--plugin MODULE ...]
     hwyeval report DIR
     hwyeval compare BASE NEW [--out DIR] [--tolerances FILE] [--timing-gate] [--json]
     hwyeval view PATH [--failed] [--web [--port N] [--bind ADDR]]
@@ -13,7 +14,10 @@
 Exit codes: 0 success (``run``: every scenario passed; ``compare``: no regression),
 1 a scenario failed, errored or timed out (``compare``: a behaviour regression, or a
 timing slowdown with ``--timing-gate``), 2 invalid input: nothing was run or
-compared (a bad argument, catalog or plug-in, a missing path, an empty baseline).
+compared (a bad argument, catalog or plug-in, a missing path, an empty baseline, an
+output directory that is not empty without ``--resume`` or ``--overwrite``); ``run``
+stopped by SIGINT (Ctrl-C) or SIGTERM: 130 or 143, after writing the reports of what
+finished (``--resume`` runs the rest; docs/reliability.md).
 """
 
 from __future__ import annotations
@@ -30,7 +34,15 @@ from suite.cli.commands import (
     cmd_report,
     cmd_view,
 )
-from suite.cli.common import EXIT_FAIL, EXIT_INPUT, EXIT_OK, UsageError, err, positive_int
+from suite.cli.common import (
+    EXIT_FAIL,
+    EXIT_INPUT,
+    EXIT_OK,
+    UsageError,
+    err,
+    positive_int,
+    positive_seconds,
+)
 from suite.cli.run import cmd_run
 
 __all__ = ["EXIT_FAIL", "EXIT_INPUT", "EXIT_OK", "UsageError", "build_parser", "main"]
@@ -63,11 +75,21 @@ def _add_plugin(s: argparse.ArgumentParser) -> None:
 def _run_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     s = sub.add_parser("run", help="run a catalog (exit 1 unless every scenario passes)")
     s.add_argument("catalog")
-    s.add_argument("--out", required=True, help="output directory")
+    s.add_argument("--out", required=True, help="output directory (new or empty, unless "
+                   "--resume or --overwrite)")
+    again = s.add_mutually_exclusive_group()
+    again.add_argument("--resume", action="store_true",
+                       help="keep the runs of DIR that finished with the same scenario content "
+                            "and hwyeval version, run the others")
+    again.add_argument("--overwrite", action="store_true",
+                       help="empty DIR (an earlier hwyeval output) first")
     s.add_argument("--jobs", type=positive_int, default=0,
                    help="parallel scenario processes (default: cores)")
     s.add_argument("--filter", default=None, help="glob on scenario names or families")
     s.add_argument("--no-log", action="store_true", help="do not write Rerun .rrd logs")
+    s.add_argument("--timeout", type=positive_seconds, default=None, metavar="SECONDS",
+                   help="wall-clock budget of every scenario (default: the catalog's "
+                        "timeout_s, else 60 s + 10 x duration_s, at most 1 h)")
     s.add_argument("--executor", choices=["local", "ray"], default="local")
     s.add_argument("--ray-address", default=None, help="ray.init address (e.g. auto)")
     _add_plugin(s)

@@ -1,21 +1,39 @@
 """``hwyeval run CATALOG --out DIR``: run a catalog, write its reports, say how it went.
 
-The steps, each one function: load plug-ins and the catalog (input errors exit 2
-before anything runs), build the jobs, write the manifest with the provenance,
-run them on an executor with progress, write the reports, finish the manifest,
-print the short summary. Exit 0 when every scenario passed, 1 otherwise.
+The steps, each one function: load plug-ins and the catalog, check the output
+directory (:mod:`suite.exec.outdir`; input errors exit 2 before anything is written),
+build the jobs (each with its wall-clock budget, :mod:`suite.exec.budget`, and its
+scenario's content hash), make the executor, prepare the directory (``--overwrite``
+empties it, ``--resume`` keeps what finished), write the manifest with the provenance,
+run the jobs with progress, write the reports, finish the manifest, print the short
+summary. Exit 0 when every scenario of the manifest passed, 1 otherwise.
+
+SIGINT and SIGTERM stop the run in order (:mod:`suite.exec.signals`): nothing more
+starts, the running scenarios are ended, the reports are written for what finished,
+``interrupted: k of N done; resume with: ...`` is printed and the exit code is 130
+(SIGINT) or 143 (SIGTERM).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
-from suite.cli.common import EXIT_FAIL, EXIT_OK, Output, Plugins, load_catalog_for, load_plugins
+from suite.cli.common import (
+    EXIT_FAIL,
+    EXIT_OK,
+    Output,
+    Plugins,
+    UsageError,
+    err,
+    load_catalog_for,
+    load_plugins,
+)
 from suite.cli.progress import RunProgress, short_summary
 
 WARMUP_NOTE = ("starting {n} worker(s): importing modules and loading numba kernels "
@@ -23,15 +41,28 @@ WARMUP_NOTE = ("starting {n} worker(s): importing modules and loading numba kern
 
 
 def build_jobs(scenarios: list[Any], out: Path, catalog_name: str, no_log: bool,
-               plugins: Plugins) -> list[Any]:
+               plugins: Plugins, timeout_s: float | None = None) -> list[Any]:
+    """One job per scenario: its budget (``--timeout``, else the catalog's, else the
+    default from its duration) and its content hash (each network file read once)."""
+    from suite.exec.budget import run_budget_s
     from suite.exec.executors import RunJob
+    from suite.run.info import file_sha256, scenario_content_sha256
     from suite.run.runner import RunOptions
 
-    return [RunJob(sc, out.resolve(),
-                   RunOptions(write_rrd=not no_log, catalog_name=catalog_name,
-                              timeout_s=sc.timeout_s),
-                   sc.timeout_s, plugins.modules)
-            for sc in scenarios]
+    net_hashes: dict[Path, str] = {}
+    jobs = []
+    for sc in scenarios:
+        if sc.net_path not in net_hashes:
+            try:
+                net_hashes[sc.net_path] = file_sha256(sc.net_path)
+            except OSError as exc:
+                raise UsageError(f"{sc.net_path}: cannot read the network of scenario "
+                                 f"{sc.name!r} ({exc})") from exc
+        budget = run_budget_s(sc.duration_s, sc.timeout_s, timeout_s)
+        options = RunOptions(write_rrd=not no_log, catalog_name=catalog_name, timeout_s=budget,
+                             content_sha256=scenario_content_sha256(sc, net_hashes[sc.net_path]))
+        jobs.append(RunJob(sc, out.resolve(), options, budget, plugins.modules))
+    return jobs
 
 
 def make_executor(args: argparse.Namespace, n_jobs: int) -> tuple[Any, int]:
@@ -39,8 +70,11 @@ def make_executor(args: argparse.Namespace, n_jobs: int) -> tuple[Any, int]:
     from suite.exec.executors import LocalExecutor, RayExecutor
 
     if args.executor == "ray":
-        return RayExecutor(address=args.ray_address), n_jobs
-    workers = min(args.jobs or os.cpu_count() or 1, n_jobs) or 1
+        try:
+            return RayExecutor(address=args.ray_address), n_jobs
+        except (RuntimeError, ConnectionError, ValueError) as exc:
+            raise UsageError(f"--executor ray: {exc}") from exc
+    workers = max(1, min(args.jobs or os.cpu_count() or 1, n_jobs))
     return LocalExecutor(jobs=workers), workers
 
 
@@ -60,31 +94,94 @@ def start_manifest(args: argparse.Namespace, scenarios: list[Any], workers: int,
                     provenance=collect(plugin_names))
 
 
-def cmd_run(args: argparse.Namespace) -> int:
+def resume_command(args: argparse.Namespace) -> str:
+    """The command that resumes this run (same catalog, output, filter and options)."""
+    parts = ["hwyeval", "run", str(args.catalog), "--out", str(args.out), "--resume"]
+    if args.filter:
+        parts += ["--filter", args.filter]
+    if args.jobs:
+        parts += ["--jobs", str(args.jobs)]
+    if args.no_log:
+        parts.append("--no-log")
+    if args.timeout is not None:
+        parts += ["--timeout", f"{args.timeout:g}"]
+    if args.executor != "local":
+        parts += ["--executor", args.executor]
+    if args.ray_address:
+        parts += ["--ray-address", args.ray_address]
+    for plugin in args.plugin or []:
+        parts += ["--plugin", plugin]
+    return shlex.join(parts)
+
+
+def _mode(args: argparse.Namespace) -> str:
+    return "resume" if args.resume else "overwrite" if args.overwrite else "fresh"
+
+
+def _write_reports(out: Path) -> Any:
+    """The reports of ``out``; None (and the reason on stderr) if they cannot be
+    written: the run directories are complete, ``hwyeval report`` can retry."""
     from reports import write_reports
+
+    try:
+        return write_reports(out)
+    except Exception as exc:  # noqa: BLE001 - the runs are kept whatever the reports do
+        err(f"could not write the reports of {out}: {type(exc).__name__}: {exc} (the run "
+            f"directories are complete; 'hwyeval report {out}' tries again)")
+        return None
+
+
+def cmd_run(args: argparse.Namespace) -> int:
     from reports.manifest import write_manifest
+    from suite.exec.outdir import (
+        OutputDirError,
+        ResumePlan,
+        check_out_dir,
+        prepare_out_dir,
+        resume_plan,
+    )
+    from suite.exec.signals import stop_on_signals
 
     out_text = Output()
     plugins = load_plugins(args.plugin)
     _, scenarios = load_catalog_for(args.catalog, args.filter)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    jobs = build_jobs(scenarios, out, Path(args.catalog).stem, args.no_log, plugins)
+    try:
+        plan = check_out_dir(out, _mode(args), [sc.name for sc in scenarios])
+    except OutputDirError as exc:
+        raise UsageError(str(exc)) from exc
+    jobs = build_jobs(scenarios, out, Path(args.catalog).stem, args.no_log, plugins,
+                      args.timeout)
     executor, workers = make_executor(args, len(jobs))
-    manifest = start_manifest(args, scenarios, workers, plugins)
-    write_manifest(out, manifest)
-    prov = manifest.provenance
-    out_text.line(f"hwyeval {prov.hwyeval_version} ({prov.short_sha}) on {prov.host}: "
-                  f"{len(jobs)} scenario(s) of {args.catalog} → {out} with {workers} "
-                  f"{args.executor} worker(s)")
-    if args.executor == "local":
-        out_text.line(WARMUP_NOTE.format(n=workers))
-    t0 = time.perf_counter()
-    with RunProgress(out_text, len(jobs), workers, sys.stdout.isatty()) as progress:
-        results = executor.run(jobs, progress.finished)
-    paths = write_reports(out)
+    with stop_on_signals() as stop:
+        prepare_out_dir(plan)
+        todo = resume_plan(jobs) if plan.mode == "resume" else ResumePlan((), tuple(jobs))
+        manifest = start_manifest(args, scenarios, workers, plugins)
+        write_manifest(out, manifest)
+        prov = manifest.provenance
+        out_text.line(f"hwyeval {prov.hwyeval_version} ({prov.short_sha}) on {prov.host}: "
+                      f"{len(jobs)} scenario(s) of {args.catalog} → {out} with {workers} "
+                      f"{args.executor} worker(s)")
+        if plan.mode == "resume":
+            out_text.line(f"resume: {len(todo.kept)} of {len(jobs)} already finished (same "
+                          f"scenario content and hwyeval version), {len(todo.to_run)} to run")
+        if args.executor == "local" and todo.to_run:
+            out_text.line(WARMUP_NOTE.format(n=min(workers, len(todo.to_run))))
+        t0 = time.perf_counter()
+        with RunProgress(out_text, len(todo.to_run), workers, sys.stdout.isatty()) as progress:
+            results = executor.run(list(todo.to_run), progress.finished, stop)
+        records = [*todo.kept, *results]
+        paths = _write_reports(out)
+    if stop.requested:
+        err(f"stopped by {stop.signal_name}: the running scenarios were ended, the reports "
+            "cover the runs that finished")
+        out_text.line(f"interrupted: {len(records)} of {len(jobs)} done; resume with: "
+                      f"{resume_command(args)}")
+        return stop.exit_code
     write_manifest(out, manifest.finish())
-    for line in short_summary(results, time.perf_counter() - t0):
+    for line in short_summary(records, time.perf_counter() - t0):
         out_text.line(line)
+    if paths is None:
+        return EXIT_FAIL
     out_text.line(f"report:  {paths.report_html}\nresults: {paths.results_csv}")
-    return EXIT_OK if all(r.status == "pass" for r in results) else EXIT_FAIL
+    return EXIT_OK if all(r.status == "pass" for r in records) else EXIT_FAIL

@@ -1,14 +1,45 @@
-"""The identity of a run (:class:`reports.record.RunInfo`) from its scenario."""
+"""The identity of a run (:class:`reports.record.RunInfo`) from its scenario, and the
+scenario's content hash (what ``hwyeval run --resume`` compares)."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 from controllers.plant.vehicle_model import VehicleParams
 from reports.record import EgoBox, RunInfo
 from suite import __version__
 from suite.catalog import Scenario
+
+CONTENT_KEY = "content_sha256"  # key of RunInfo.scenario_spec holding the content hash
+# Fields of Scenario.as_dict() that say where things are or how long we may wait, not
+# what is simulated: they do not change a run's result, so they are not hashed.
+UNHASHED_FIELDS = ("catalog_path", "net_path", "timeout_s")
+_CHUNK_BYTES = 1 << 20
+
+
+def file_sha256(path: Path) -> str:
+    """SHA-256 of a file's bytes (hex). Raises OSError if it cannot be read."""
+    digest = hashlib.sha256()
+    with Path(path).open("rb") as fh:
+        while chunk := fh.read(_CHUNK_BYTES):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def scenario_content_sha256(scenario: Scenario, net_sha256: str | None = None) -> str:
+    """SHA-256 (hex) of everything a run of ``scenario`` depends on: every field of the
+    resolved scenario but its paths and wall-clock budget (:data:`UNHASHED_FIELDS`), and
+    the bytes of its network file (``net_sha256`` when already known). Two scenarios
+    with the same hash simulate the same thing with the same hwyeval version."""
+    spec = {k: v for k, v in scenario.as_dict().items() if k not in UNHASHED_FIELDS}
+    net = net_sha256 if net_sha256 is not None else file_sha256(scenario.net_path)
+    text = json.dumps({"scenario": spec, "net_sha256": net}, sort_keys=True,
+                      separators=(",", ":"), allow_nan=True, default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def ego_box(vehicle: VehicleParams) -> EgoBox:
@@ -19,8 +50,14 @@ def ego_box(vehicle: VehicleParams) -> EgoBox:
 
 
 def scenario_info(scenario: Scenario, catalog_name: str, vehicle: VehicleParams,
-                  controller_params: Mapping[str, Any] | None = None) -> RunInfo:
-    """Everything about the run known before it starts (controller parameters once built)."""
+                  controller_params: Mapping[str, Any] | None = None,
+                  content_sha256: str = "") -> RunInfo:
+    """Everything about the run known before it starts (controller parameters once
+    built); ``content_sha256`` (:func:`scenario_content_sha256`, '' if unknown) goes
+    into ``scenario_spec`` under :data:`CONTENT_KEY`."""
+    spec = scenario.as_dict()
+    if content_sha256:
+        spec[CONTENT_KEY] = content_sha256
     return RunInfo(
         scenario=scenario.name, family=scenario.family, controller=scenario.controller.name,
         catalog=str(scenario.catalog_path), catalog_name=catalog_name, seed=int(scenario.seed),
@@ -30,5 +67,5 @@ def scenario_info(scenario: Scenario, catalog_name: str, vehicle: VehicleParams,
         controller_options=scenario.controller.options_dict(),
         controller_params=dict(controller_params or {}),
         criteria={k: float(v) for k, v in scenario.criteria.items()},
-        scenario_spec=scenario.as_dict(), record_radius_m=float(scenario.record_radius_m),
+        scenario_spec=spec, record_radius_m=float(scenario.record_radius_m),
         hwyeval_version=__version__, friction=float(scenario.friction))

@@ -1,9 +1,12 @@
 """Run one scenario: build the loop's stages, run them, judge the record, write it once.
 
 ``run_scenario`` never raises: a crash is recorded as ``error`` with its traceback, an
-exceeded wall-clock budget as ``timeout``, and what was recorded until then is kept.
-The verdict is computed once, here, by :func:`reports.metrics.evaluate`; the run
-directory (:mod:`reports.record.run`) is written once, run.json last.
+exceeded wall-clock budget as ``timeout``, and what was recorded until then is kept
+(its trace and series), while the verdict of such a run carries NaN metric values and
+no failures (:func:`void_metrics`): a run that did not finish is never counted as, say,
+collision-free. The verdict is computed once, here, by :func:`reports.metrics.evaluate`;
+the run directory (:mod:`reports.record.run`) is written once, into a staging directory
+(run.json last) that is renamed to ``OUT/<scenario>`` when complete.
 """
 
 from __future__ import annotations
@@ -34,7 +37,6 @@ from controllers.protocol import (
 )
 from reports.record import (
     RRD,
-    RUN_FILES,
     ControllerArrays,
     LaneRecord,
     NeighbourColumns,
@@ -46,6 +48,8 @@ from reports.record import (
     write_run,
     write_run_json,
 )
+from reports.record.run import publish_run_dir, remove_path, staging_dir
+from reports.record.verdict import Verdict
 from suite.catalog import Scenario
 from suite.road.lanes import LaneContextMap
 from suite.road.network import RoadNetwork
@@ -63,11 +67,23 @@ from suite.world.sumo import SumoWorld
 
 @dataclass(frozen=True)
 class RunOptions:
-    """How to run: Rerun log on/off, the catalog's name (for logs), wall budget [s]."""
+    """How to run: Rerun log on/off, the catalog's name (for logs), the wall-clock budget
+    ``timeout_s`` [s] (None: none), and the scenario's content hash
+    (:func:`suite.run.info.scenario_content_sha256`, '' if not computed) to record."""
 
     write_rrd: bool = True
     catalog_name: str = ""
     timeout_s: float | None = None
+    content_sha256: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.write_rrd, bool):
+            raise TypeError(f"RunOptions.write_rrd: expected a bool, got {self.write_rrd!r}")
+        if self.timeout_s is not None and (
+                isinstance(self.timeout_s, bool) or not isinstance(self.timeout_s, int | float)
+                or not math.isfinite(self.timeout_s) or self.timeout_s <= 0):
+            raise ValueError(f"RunOptions.timeout_s: expected a finite number of seconds > 0 "
+                             f"or None, got {self.timeout_s!r}")
 
 
 class SumoDrivesEgo:
@@ -164,7 +180,8 @@ def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: R
     driver = registry.make(scenario.controller.name, scenario.controller.options_dict())
     controller: Controller = SumoDrivesEgo(driver) if isinstance(driver, SumoDriverModel) \
         else driver
-    info = scenario_info(scenario, options.catalog_name, vehicle, controller.parameters())
+    info = scenario_info(scenario, options.catalog_name, vehicle, controller.parameters(),
+                         options.content_sha256)
     ref = _reference(network, scenario)
     reference = ref.points_xy_m
     start_edge, _ = network.locate(route, scenario.ego.pos_m)
@@ -199,25 +216,29 @@ def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: R
                 float(policy.detection_distance_m) if policy is not None else 0.0, n_steps)
 
 
-def _clean(run_dir: Path) -> None:
-    run_dir.mkdir(parents=True, exist_ok=True)
-    for name in RUN_FILES:
-        (run_dir / name).unlink(missing_ok=True)
-
-
 def run_scenario(scenario: Scenario, out_dir: Path, options: RunOptions | None = None
                  ) -> RunRecord:
-    """Run one scenario into ``out_dir/<name>/`` and return its record (never raises)."""
+    """Run one scenario into ``out_dir/<name>/`` and return its record (never raises).
+
+    The run is written into a staging directory and renamed to ``out_dir/<name>`` when
+    complete, replacing an older run there (:func:`reports.record.run.publish_run_dir`);
+    if even that fails, the record is returned with the reason and ``run_dir`` None."""
     options = options or RunOptions()
-    run_dir = Path(out_dir) / scenario.name
-    _clean(run_dir)
+    final = Path(out_dir) / scenario.name
     vehicle = VehicleParams(friction_coeff=scenario.friction)  # the road's mu
     wall0 = time.perf_counter()
+    try:
+        stage = staging_dir(Path(out_dir), scenario.name)
+    except OSError:
+        record = _record(scenario, options, vehicle, None, WorldSummary(), "error",
+                         "cannot create the run directory:\n" + traceback.format_exc(), "",
+                         wall0)
+        return judge_record(record)
     end, error, reason = "ok", None, ""
     run: _Run | None = None
     summary = WorldSummary()
     try:
-        run = _build(scenario, run_dir, vehicle, options, wall0)
+        run = _build(scenario, stage, vehicle, options, wall0)
         reason = run_loop(run.stages, run.n_steps)
     except ScenarioTimeout as exc:
         end, error = "timeout", str(exc)
@@ -225,9 +246,24 @@ def run_scenario(scenario: Scenario, out_dir: Path, options: RunOptions | None =
         end, error = "error", traceback.format_exc()
     finally:
         if run is not None:
-            summary = run.world.close()
+            try:
+                summary = run.world.close()
+            except Exception:  # noqa: BLE001 - SUMO failing to close is the run's error
+                end, error = "error", (error or "") + traceback.format_exc()
     record = _record(scenario, options, vehicle, run, summary, end, error, reason, wall0)
-    return _judge_and_write(record, run_dir, options)
+    try:
+        record = _judge_and_write(record, stage, options)
+        publish_run_dir(stage, final)
+        record.run_dir = final
+    except Exception:  # noqa: BLE001 - a full disk, a vanished --out: reported, not raised
+        remove_path(stage)
+        record.run_dir = None
+        record.outcome = replace(record.outcome, end="error", error=(
+            (record.outcome.error or "") + f"\nwhile writing the run to {final}:\n"
+            + traceback.format_exc()))
+        if record.verdict is not None:
+            record.verdict = void_metrics(record.verdict)
+    return record
 
 
 def _record(scenario: Scenario, options: RunOptions, vehicle: VehicleParams, run: _Run | None,
@@ -238,7 +274,9 @@ def _record(scenario: Scenario, options: RunOptions, vehicle: VehicleParams, run
         info, road = run.info, run.road
     else:
         trace, neighbours, arrays = Trace.empty(), NeighbourColumns.allocate(0), ControllerArrays()
-        info, road = scenario_info(scenario, options.catalog_name, vehicle), RoadRecord()
+        info = scenario_info(scenario, options.catalog_name, vehicle,
+                             content_sha256=options.content_sha256)
+        road = RoadRecord()
     trace.safety.ssm_ttc_s[:] = summary.ssm_ttc_at(trace.t_s)
     outcome = RunOutcome(
         end=end, error=error, stop_reason=reason, wall_s=time.perf_counter() - wall0,
@@ -251,9 +289,17 @@ def _record(scenario: Scenario, options: RunOptions, vehicle: VehicleParams, run
                      arrays=arrays, run_dir=None)
 
 
-def _judge_and_write(record: RunRecord, run_dir: Path, options: RunOptions) -> RunRecord:
-    """Evaluate once, write the run's files, log it to Rerun from memory, then run.json
-    (once, last: a reader never sees a run.json whose files are not all there)."""
+def void_metrics(verdict: Verdict) -> Verdict:
+    """The verdict of a run that did not finish ('error' or 'timeout'): every metric
+    NaN (not measured: what ran is in the trace, but it says nothing of the whole run)
+    and no failures; names, units and criteria kept."""
+    metrics = tuple(replace(m, value=math.nan, worst_step=None) for m in verdict.metrics)
+    return replace(verdict, metrics=metrics, failures=())
+
+
+def judge_record(record: RunRecord) -> RunRecord:
+    """Evaluate once (metrics NaN for a run that did not end 'ok'); a metric bug is
+    recorded as the run's error, never raised."""
     from reports.metrics import evaluate
 
     try:
@@ -263,12 +309,23 @@ def _judge_and_write(record: RunRecord, run_dir: Path, options: RunOptions) -> R
         record.outcome = replace(record.outcome, end="error", error=(
             (record.outcome.error or "") + "\nwhile evaluating metrics:\n"
             + traceback.format_exc()))
+    if record.verdict is not None and record.outcome.end != "ok":
+        record.verdict = void_metrics(record.verdict)
+    return record
+
+
+def _judge_and_write(record: RunRecord, run_dir: Path, options: RunOptions) -> RunRecord:
+    """Evaluate once, write the run's files, log it to Rerun from memory, then run.json
+    (once, last: a reader never sees a run.json whose files are not all there)."""
+    record = judge_record(record)
     record.run_dir = run_dir
     try:
         write_run(record, run_dir, run_json=False)
     except Exception:  # noqa: BLE001
         record.outcome = replace(record.outcome, end="error", error=(
             (record.outcome.error or "") + "\nwhile writing the run:\n" + traceback.format_exc()))
+        if record.verdict is not None:
+            record.verdict = void_metrics(record.verdict)
     if options.write_rrd:
         t0 = time.perf_counter()
         try:

@@ -1,0 +1,218 @@
+"""The local executor: up to ``jobs`` scenario processes at once on this machine.
+
+One scenario per process (libsumo hosts one simulation per process), started by a
+``forkserver`` with the heavy modules preloaded (:data:`PRELOAD`), so a catalog pays
+imports and numba cache loading once. The forkserver is started (and its preload
+awaited) before the first scenario, in a thread, so that the parent stays responsive
+to signals and no scenario's budget is spent on the warm-up.
+
+For each job: an older run directory of it is removed before it starts (what is
+found there afterwards is this run's), a process over its wall-clock budget is
+killed (``timeout``), a process that died without publishing a record is an
+``error`` with its exit code. On a stop request (:mod:`suite.exec.signals`) nothing
+more is dispatched, the running processes and their groups get SIGTERM then SIGKILL
+(:mod:`suite.exec.worker`), their staging directories are removed, no record is
+written for them (they did not finish: ``--resume`` runs them again), and the
+forkserver is stopped.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import multiprocessing.connection
+import os
+import signal
+import threading
+import time
+import traceback
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from reports.record import RecordError, RunRecord
+from reports.record.run import discard_staging, remove_path
+from suite.exec.jobs import OnDone, RunJob, read_result, record_in_memory, run_job, write_failure
+from suite.exec.signals import POLL_S, StopRequest
+from suite.exec.worker import become_worker, signal_worker, terminate_workers
+
+__all__ = ["KILL_GRACE_S", "PRELOAD", "LocalExecutor", "stop_forkserver"]
+
+PRELOAD = ["numpy", "pandas", "numba", "libsumo", "suite.run.runner", "suite.catalog",
+           "controllers.builtin", "suite.exec.warmup"]
+KILL_GRACE_S = 10.0  # a process still alive this long after its budget is killed [s]
+
+
+def _worker_main(job: RunJob) -> None:
+    become_worker()
+    try:
+        run_job(job)
+    except Exception:
+        write_failure(job, "error", traceback.format_exc())
+        raise
+
+
+def _noop() -> None:
+    """The warm-up process: its start makes the forkserver preload."""
+
+
+def stop_forkserver() -> None:
+    """Kill this process's forkserver, if it has one (it may be in the middle of its
+    preload, which would otherwise outlive us by as long as numba takes)."""
+    from multiprocessing import forkserver
+
+    server: Any = getattr(forkserver, "_forkserver", None)
+    pid = getattr(server, "_forkserver_pid", None)
+    if server is None or pid is None:
+        return
+    try:
+        os.kill(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    try:
+        server._stop()  # closes its pipe, reaps it; a later run starts a new one
+    except (OSError, ChildProcessError):
+        pass
+
+
+@dataclass
+class _Running:
+    job: RunJob
+    proc: Any
+    started: float  # time.monotonic() at start [s]
+
+
+class LocalExecutor:
+    """Scenario processes on this machine, at most ``jobs`` at once (module docstring)."""
+
+    def __init__(self, jobs: int = 1, start_method: str = "forkserver") -> None:
+        if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+            raise ValueError(f"jobs must be a whole number >= 1, got {jobs!r}")
+        self.jobs = jobs
+        self.ctx: Any = mp.get_context(start_method)
+        self.start_method = start_method
+        if start_method == "forkserver":
+            self.ctx.set_forkserver_preload(PRELOAD)
+
+    # ------------------------------------------------------------------ the loop
+    def run(self, jobs: Sequence[RunJob], on_done: OnDone | None = None,
+            stop: StopRequest | None = None) -> list[RunRecord]:
+        stop = stop if stop is not None else StopRequest()
+        pending = deque(jobs)
+        running: dict[Any, _Running] = {}
+        results: list[RunRecord] = []
+
+        def done(record: RunRecord) -> None:
+            results.append(record)
+            if on_done is not None:
+                on_done(record)
+
+        if not pending or not self._warm_up(stop):
+            self._after(stop)
+            return results
+        try:
+            while (pending or running) and not stop.requested:
+                while pending and len(running) < self.jobs and not stop.requested:
+                    job = pending.popleft()
+                    started = self._start(job)
+                    if isinstance(started, RunRecord):
+                        done(started)
+                    else:
+                        running[started.proc.sentinel] = started
+                if not running:
+                    continue
+                for sentinel in mp.connection.wait(list(running), timeout=POLL_S):
+                    item = running.pop(sentinel)
+                    done(self._finish(item, None))
+                self._kill_overdue(running, done)
+        finally:
+            if running:  # a stop request, or the parent itself failed: no orphan
+                self._abandon(list(running.values()), done)
+            self._after(stop)
+        return results
+
+    def _warm_up(self, stop: StopRequest) -> bool:
+        """Start the forkserver and wait for its preload in a thread, polling ``stop``;
+        False when stopped meanwhile."""
+        def start() -> None:
+            try:
+                proc = self.ctx.Process(target=_noop, name="hwyeval-warm-up")
+                proc.start()
+                proc.join()
+            except Exception:  # noqa: BLE001 - the first scenario will fail and say why
+                pass
+
+        thread = threading.Thread(target=start, name="hwyeval-warm-up", daemon=True)
+        thread.start()
+        while thread.is_alive():
+            if stop.requested:
+                return False
+            thread.join(POLL_S)
+        return True
+
+    def _after(self, stop: StopRequest) -> None:
+        if stop.requested and self.start_method == "forkserver":
+            stop_forkserver()
+
+    # ------------------------------------------------------------------ one job
+    def _start(self, job: RunJob) -> _Running | RunRecord:
+        """Start the job's process (its older run directory removed first), or the
+        error record when it cannot be started."""
+        try:
+            remove_path(job.run_dir)
+            discard_staging(job.out_dir, job.name)
+            proc = self.ctx.Process(target=_worker_main, args=(job,), name=job.name)
+            proc.start()
+        except Exception:  # noqa: BLE001 - one job that cannot start is that job's error
+            return write_failure(job, "error", "could not start the scenario process:\n"
+                                 + traceback.format_exc())
+        return _Running(job, proc, time.monotonic())
+
+    def _finish(self, item: _Running, killed: str | None) -> RunRecord:
+        """The record of a process that ended (or was killed: ``killed`` says why)."""
+        job, proc = item.job, item.proc
+        try:
+            proc.join(timeout=KILL_GRACE_S)
+            discard_staging(job.out_dir, job.name)
+            if killed is not None:
+                return write_failure(job, "timeout", killed)
+            return self._published(job, proc.exitcode)
+        except Exception:  # noqa: BLE001 - the parent must go on with the other jobs
+            return record_in_memory(job, "error", "the executor failed on this run:\n"
+                                    + traceback.format_exc())
+
+    @staticmethod
+    def _published(job: RunJob, exitcode: int | None) -> RunRecord:
+        try:
+            record = read_result(job)
+        except (FileNotFoundError, RecordError) as exc:
+            return write_failure(job, "error", f"scenario process exited with code "
+                                 f"{exitcode} without a valid record ({exc})")
+        if exitcode != 0 and record.outcome.end == "ok":
+            return write_failure(job, "error", f"scenario process exited with code {exitcode}")
+        return record
+
+    def _kill_overdue(self, running: dict[Any, _Running], done: OnDone) -> None:
+        """The backstop for a hung process: the runner stops itself at its budget."""
+        now = time.monotonic()
+        for sentinel, item in list(running.items()):
+            budget = item.job.timeout_s
+            if budget is None or now - item.started <= budget + KILL_GRACE_S:
+                continue
+            signal_worker(item.proc, signal.SIGKILL)
+            running.pop(sentinel)
+            done(self._finish(item, f"killed after {now - item.started:.1f} s (wall-clock "
+                                    f"budget {budget:g} s)"))
+
+    def _abandon(self, items: list[_Running], done: OnDone) -> None:
+        """End the running processes of a stopped run; a run one of them published
+        before it ended is kept, the others leave nothing behind."""
+        terminate_workers([item.proc for item in items])
+        for item in items:
+            discard_staging(item.job.out_dir, item.job.name)
+            try:
+                record = read_result(item.job)
+            except (FileNotFoundError, RecordError, OSError):
+                remove_path(item.job.run_dir)
+                continue
+            done(record)
