@@ -60,21 +60,21 @@ def box_corners(cx: np.ndarray | float, cy: np.ndarray | float, heading_rad: np.
 # numpy's maximum/minimum propagate NaN; Python's max/min and comparisons do not.
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _pmax(a: float, b: float) -> float:
     if a != a or b != b:
         return _NAN
     return a if a > b else b
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _pmin(a: float, b: float) -> float:
     if a != a or b != b:
         return _NAN
     return a if a < b else b
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _proj_range(q: np.ndarray, nx: float, ny: float) -> tuple[float, float]:
     """(min, max) of the projections of the 4 corners q (4, 2) on (nx, ny), NaN-propagating."""
     p = q[0, 0] * nx + q[0, 1] * ny
@@ -87,7 +87,7 @@ def _proj_range(q: np.ndarray, nx: float, ny: float) -> tuple[float, float]:
     return lo, hi
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _overlap_quads(a: np.ndarray, b: np.ndarray) -> bool:
     """Separating-axis test of two rectangles (4, 2): no edge normal separates them."""
     for poly in range(2):
@@ -102,7 +102,7 @@ def _overlap_quads(a: np.ndarray, b: np.ndarray) -> bool:
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _point_segment(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> float:
     """Distance [m] from point p to segment a-b (the numpy reference's formula)."""
     abx = bx - ax
@@ -120,7 +120,7 @@ def _point_segment(px: float, py: float, ax: float, ay: float, bx: float, by: fl
     return math.sqrt(dx * dx + dy * dy)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _distance_quads(a: np.ndarray, b: np.ndarray) -> float:
     """Distance [m] between two rectangles (4, 2), 0 where they overlap."""
     if _overlap_quads(a, b):
@@ -137,7 +137,7 @@ def _distance_quads(a: np.ndarray, b: np.ndarray) -> float:
     return best
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _fill_corners(cx: float, cy: float, h: float, length: float, width: float,
                   out: np.ndarray) -> None:
     """The corners (4, 2) of one box into ``out`` (the order of :func:`box_corners`)."""
@@ -152,7 +152,7 @@ def _fill_corners(cx: float, cy: float, h: float, length: float, width: float,
         out[k, 1] = cy + s * lx + c * ly
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _pairs_kernel(a: np.ndarray, b: np.ndarray, want_distance: bool, dist: np.ndarray,
                   overlap: np.ndarray) -> None:
     """Row by row over a, b (M, 4, 2): overlap (M,) and, if asked, distance (M,)."""
@@ -163,7 +163,7 @@ def _pairs_kernel(a: np.ndarray, b: np.ndarray, want_distance: bool, dist: np.nd
             dist[i] = 0.0 if ov else _distance_quads(a[i], b[i])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _gaps_kernel(cx: float, cy: float, h: float, length: float, width: float, xs: np.ndarray,
                  ys: np.ndarray, hs: np.ndarray, ls: np.ndarray, ws: np.ndarray,
                  gap: np.ndarray, overlap: np.ndarray) -> None:
@@ -177,7 +177,7 @@ def _gaps_kernel(cx: float, cy: float, h: float, length: float, width: float, xs
         gap[i] = 0.0 if ov else _distance_quads(ego, other)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _nearest_kernel(cx: float, cy: float, h: float, length: float, width: float,
                     xs: np.ndarray, ys: np.ndarray, hs: np.ndarray, ls: np.ndarray,
                     ws: np.ndarray) -> tuple[int, float, bool]:
@@ -208,7 +208,7 @@ def _nearest_kernel(cx: float, cy: float, h: float, length: float, width: float,
     return best_i, best, any_overlap
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _ttc_kernel(a: np.ndarray, va: np.ndarray, b: np.ndarray, vb: np.ndarray, horizon: float,
                 out: np.ndarray) -> None:
     """Swept TTC [s] row by row over a, b (M, 4, 2) and va, vb (M, 2) [m/s]."""

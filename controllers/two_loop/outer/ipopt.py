@@ -490,6 +490,9 @@ class IpoptOuter:
             "print_level": 0, "sb": "yes", "max_iter": int(params.max_iter),
             "tol": float(params.tol), "acceptable_tol": 100.0 * float(params.tol),
             "acceptable_iter": 5, "mu_strategy": "monotone",
+            # Ipopt's defaults, stated: the exact Hessian of the Lagrangian (CasADi's
+            # algorithmic derivatives) and the MUMPS sparse linear solver.
+            "hessian_approximation": "exact", "linear_solver": "mumps",
         }
         if max_wall_s is not None:
             self._cold_opts["max_wall_time"] = float(max_wall_s)

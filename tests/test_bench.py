@@ -1,0 +1,129 @@
+"""hwyeval bench's pieces: its catalogs, figures and targets, the extrapolation-error
+arithmetic (known answers), and one real command timed (SUMO test)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from suite.bench import TARGETS, summary_lines, targets
+from suite.bench.catalogs import MATRIX_CATALOG, TARGET_CATALOG, with_defaults
+from suite.bench.command import CommandTiming, RunFigures, StepStats, run_command
+from suite.bench.multirate import _Frame, extrapolation_errors
+from suite.catalog import load_catalog
+
+
+def test_catalogs(tmp_path: Path) -> None:
+    (tmp_path / "m.toml").write_text(MATRIX_CATALOG)
+    matrix = load_catalog(tmp_path / "m.toml").scenarios
+    assert len(matrix) == 12
+    assert {s.net for s in matrix} == {"straight_2lane", "straight_3lane"}
+    assert {s.controller.name for s in matrix} == {"two_loop", "lane_keep"}
+    assert sorted({s.traffic.vehicles_per_hour if s.traffic else 0 for s in matrix}) == \
+        [0, 1200, 2400]
+    (tmp_path / "t.toml").write_text(with_defaults(TARGET_CATALOG, sumo_step_s=0.02))
+    target = load_catalog(tmp_path / "t.toml").scenarios
+    assert len(target) == 4 and all(s.steps_per_world_step == 1 for s in target)
+    assert sum(s.duration_s for s in target) == pytest.approx(160.0)
+    with pytest.raises(ValueError):
+        with_defaults("[[scenario]]\n", sumo_step_s=0.02)
+
+
+def test_step_stats_known_answers() -> None:
+    st = StepStats.of(np.array([1e-6, 2e-6, 3e-6, np.nan]))
+    assert st.n == 3 and st.p50_us == pytest.approx(2.0) and st.max_us == pytest.approx(3.0)
+    assert math.isnan(StepStats.of(np.zeros(0)).p50_us)
+    with pytest.raises(ValueError):
+        StepStats(-1, 0.0, 0.0, 0.0, 0.0)
+    run = RunFigures("a", "pass", wall_s=2.0, stages_s=1.5, sim_s=40.0, peak_rss_mb=200.0,
+                     log_s=0.1)
+    assert run.realtime_factor == pytest.approx(20.0)
+    cmd = CommandTiming(jobs=1, log=True, wall_s=8.0, runs_span_s=4.0, sim_s=160.0,
+                        exit_code=0, runs=(run,))
+    assert cmd.realtime_factor == pytest.approx(20.0)
+    assert cmd.runs_realtime_factor == pytest.approx(40.0)
+    with pytest.raises(ValueError):
+        CommandTiming(jobs=0, log=True, wall_s=1.0, runs_span_s=1.0, sim_s=1.0, exit_code=0,
+                      runs=())
+
+
+def _figures(rtf: float, p99_us: float) -> dict:  # type: ignore[type-arg]
+    steps = {k: {"n": 10, "p50_us": 100.0, "p95_us": 150.0, "p99_us": p99_us,
+                 "max_us": 400.0}
+             for k in ("controller_step", "behaviour_and_controller", "behaviour", "dynamics")}
+    run = {"scenario": "a", "realtime_factor": 30.0, "peak_rss_mb": 210.0}
+    command = {"sim_s": 160.0, "wall_s": 160.0 / rtf, "realtime_factor": rtf,
+               "runs_realtime_factor": rtf * 1.5, "steps_us": steps, "runs": [run]}
+    ratio = {"raw": {"p50_s": 35.0, "var_s2": 500.0},
+             "min_of_repeats": {"p50_s": 33.0, "var_s2": 2000.0}}
+    return {"machine": {}, "load_start": [0.1, 0.1, 0.1], "load_end": [0.2, 0.1, 0.1],
+            "controller": {"outer_update": {"p50_us": 24.0, "p99_us": 40.0},
+                           "control_step": {"p50_us": 110.0, "p99_us": 150.0}},
+            "solvers": {"repeats": 3, "cgmres": {"raw": {"p50_s": 7e-5}},
+                        "ipopt_barrier": {"raw": {"p50_s": 2.6e-3}},
+                        "ipopt_barrier_over_cgmres": ratio, "ipopt_hard_over_cgmres": ratio},
+            "commands": {"target_jobs1_log": command, "target_jobs1_nolog": command,
+                         "target_jobs2_log": command, "matrix_jobs1_log": command,
+                         "jobs2_over_jobs1": {"whole_command": 1.5, "scenario_phase": 1.8},
+                         "logging_overhead": 1.05}}
+
+
+def test_targets_and_summary() -> None:
+    fig = _figures(rtf=55.0, p99_us=240.0)
+    got = targets(fig)
+    assert set(got) == set(TARGETS)
+    assert got["realtime_factor_jobs1_log"]["met"] and got["controller_step_p99_us"]["met"]
+    assert got["ipopt_over_cgmres_p50"]["met"] and not got["ipopt_over_cgmres_var"]["met"]
+    assert not got["jobs2_over_jobs1"]["met"]
+    fig["targets"] = got
+    text = "\n".join(summary_lines(fig))
+    assert "TARGET realtime_factor_jobs1_log: 55.00 (target >= 50) -> met" in text
+    assert "TARGET jobs2_over_jobs1: 1.50 (target >= 1.7) -> NOT met" in text
+    slow = targets(_figures(rtf=20.0, p99_us=300.0))
+    assert not slow["realtime_factor_jobs1_log"]["met"]
+    assert not slow["controller_step_p99_us"]["met"]
+
+
+def _frames(n: int, step_s: float, accel: float) -> list[_Frame]:
+    """Two vehicles: one at 20 m/s plus ``accel`` along +X, one stalled."""
+    out = []
+    for k in range(n):
+        t = k * step_s
+        x = np.array([20.0 * t + 0.5 * accel * t * t, 50.0])
+        out.append(_Frame({"a": 0, "s": 1}, x, np.array([0.0, 3.5]), np.zeros(2),
+                          np.array([20.0 + accel * t, 0.0])))
+    return out
+
+
+def test_extrapolation_errors_known_answers() -> None:
+    errs = extrapolation_errors(_frames(60, 0.02, 0.0), 5, 0.02)
+    assert errs["velocity"]["all"]["max_m"] == pytest.approx(0.0, abs=1e-9)
+    assert errs["velocity"]["moving"]["n"] == errs["velocity"]["all"]["n"] // 2
+    # no extrapolation: the moving car's error is v tau, at most 20 m/s x 0.08 s
+    assert errs["hold"]["by_tau_s"]["0.08"]["max_m"] == pytest.approx(1.6)
+    assert errs["hold"]["by_tau_s"]["0.02"]["max_m"] == pytest.approx(0.4)
+    braking = extrapolation_errors(_frames(60, 0.02, -4.0), 5, 0.02)
+    # constant speed misses a tau^2 / 2 (0.0128 m at 0.08 s); constant acceleration is exact
+    assert braking["velocity"]["all"]["max_m"] == pytest.approx(0.5 * 4.0 * 0.08 ** 2)
+    assert braking["acceleration"]["all"]["max_m"] == pytest.approx(0.0, abs=1e-9)
+    with pytest.raises(ValueError):
+        extrapolation_errors([], 1, 0.02)
+
+
+@pytest.mark.sumo
+def test_a_real_command_is_timed(tmp_path: Path) -> None:
+    catalog = tmp_path / "c.toml"
+    catalog.write_text(TARGET_CATALOG.replace("duration_s = 40.0", "duration_s = 2.0")
+                       .replace('"traffic.seed" = [3, 4, 5, 6]', '"traffic.seed" = [3, 4]'))
+    timing = run_command(catalog, tmp_path / "out", jobs=1, log=False)
+    assert timing.exit_code in (0, 1) and len(timing.runs) == 2
+    assert timing.sim_s == pytest.approx(4.0, abs=0.05)
+    assert 0.0 < timing.runs_span_s < timing.wall_s
+    assert all(r.peak_rss_mb > 50.0 and 0.0 < r.stages_s < r.wall_s for r in timing.runs)
+    st = timing.steps["controller_step"]
+    assert st.n == 200 and 0.0 < st.p50_us <= st.p99_us <= st.max_us
+    with pytest.raises(FileExistsError):
+        run_command(catalog, tmp_path / "out", jobs=1, log=False)
