@@ -40,10 +40,10 @@ ego = { lane = 0, pos_m = 400.0, speed_mps = 22.0, target_speed_mps = 22.0 }
 traffic = { vehicles_per_hour = 1800, seed = 4 }
 
 [[scenario]]
-name = "ego_inserted_onto_stalled_car_crashes"
+name = "controller_crashes_mid_run"
 net = "straight_2lane"
 ego = { lane = 0, pos_m = 300.0, speed_mps = 20.0 }
-stalled = [ { lane = 0, pos_m = 300.0 } ]
+controller = "crash_at_step_50"
 
 [[scenario]]
 name = "too_slow_for_its_budget"
@@ -51,6 +51,39 @@ net = "straight_2lane"
 ego = { lane = 0, pos_m = 60.0, speed_mps = 20.0 }
 duration_s = 600.0
 timeout_s = 0.3
+"""
+
+
+# A valid catalog whose run fails at run time: a plug-in controller that drives like
+# lane_keep and raises at its 50th step (validation cannot know).
+CRASHING_PLUGIN = """
+from controllers import registry
+
+
+class CrashAtStep50:
+    name = "crash_at_step_50"
+
+    def __init__(self):
+        self.inner = registry.make("lane_keep")
+        self.steps = 0
+
+    def reset(self, context):
+        self.inner.reset(context)
+
+    def step(self, observation):
+        self.steps += 1
+        if self.steps == 50:
+            raise RuntimeError("deliberate crash at step 50")
+        return self.inner.step(observation)
+
+    def parameters(self):
+        return {"name": self.name}
+
+    def __getattr__(self, attr):  # obstacle policy, diagnostics type: lane_keep's
+        return getattr(self.inner, attr)
+
+
+registry.register("crash_at_step_50", lambda options: CrashAtStep50())
 """
 
 
@@ -65,8 +98,11 @@ def catalog_run(
     base = tmp_path_factory.mktemp("foundation")
     catalog = base / "foundation.toml"
     catalog.write_text(CATALOG)
+    plugin = base / "crash_plugin.py"
+    plugin.write_text(CRASHING_PLUGIN)
     out = base / "out"
-    proc = hwyeval("run", str(catalog), "--out", str(out), "--jobs", "2", "--no-log")
+    proc = hwyeval("run", str(catalog), "--out", str(out), "--jobs", "2", "--no-log",
+                   "--plugin", str(plugin))
     return out, proc
 
 
@@ -132,9 +168,9 @@ def test_ego_pose_in_sumo_equals_the_plant_every_step(catalog_run) -> None:
 def test_a_crashing_scenario_is_an_error_with_traceback_and_others_go_on(catalog_run) -> None:
     out, _ = catalog_run
     res = _results(out)
-    assert res.loc["ego_inserted_onto_stalled_car_crashes", "status"] == "error"
-    tb = (out / "ego_inserted_onto_stalled_car_crashes" / "traceback.txt").read_text()
-    assert "Traceback" in tb and "could not insert the ego" in tb
+    assert res.loc["controller_crashes_mid_run", "status"] == "error"
+    tb = (out / "controller_crashes_mid_run" / "traceback.txt").read_text()
+    assert "Traceback" in tb and "deliberate crash at step 50" in tb
     assert res.loc["lane_keep_free_curve_with_traffic", "status"] == "pass"
 
 
@@ -159,7 +195,7 @@ def test_same_seed_same_catalog_gives_identical_results(catalog_run, tmp_path: P
     catalog = out.parent / "foundation.toml"
     again = tmp_path / "again"
     proc = hwyeval("run", str(catalog), "--out", str(again), "--no-log", "--jobs", "1",
-                   "--filter", "lane_keep_*")
+                   "--filter", "lane_keep_*", "--plugin", str(out.parent / "crash_plugin.py"))
     assert proc.returncode == 1, proc.stderr
     a = _results(out).loc[["lane_keep_into_stalled_car", "lane_keep_free_curve_with_traffic"]]
     b = _results(again).loc[["lane_keep_into_stalled_car", "lane_keep_free_curve_with_traffic"]]

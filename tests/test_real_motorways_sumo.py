@@ -152,8 +152,14 @@ stalled = [ {{ lane = 1, pos_m = 2080.0 }} ]
     # Before the stalled car the ego drives its own lane: SUMO has it in lane 0 of the
     # 2-lane edge, not in the lane numbered 0 of the route's first edge.
     assert tr.ego.lane_index[0] == 0 and abs(tr.ego.lat_dev_m[:100]).max() < 0.2
-    sides = set(tr.decision.side.tolist())
-    assert 1 in sides and -1 not in sides  # passed on the left, never on the right
+    side = tr.decision.side
+    why = tr.decision.side_reason
+    # Passed on the left, never on the right: the only moves right are the return.
+    passes = [k for k, r in enumerate(why) if str(r).startswith("pass ")]
+    assert passes and all(side[k] == 1 for k in passes)
+    rights = {str(why[k]) for k in range(len(side)) if side[k] == -1}
+    assert all(r.startswith(("return right", "changing right", "in the right lane"))
+               for r in rights), rights
     reasons = " ".join(tr.decision.side_reason.tolist())
     assert "left lane free" in reasons
     assert rec.verdict.value("progress_m") > 700.0

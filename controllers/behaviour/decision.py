@@ -187,7 +187,7 @@ class LaneBehaviour:
             if t - plan.since_s < lc.hold_s and not w.urgent:
                 reasons.append(f"{w.why}: holding the lane for {lc.hold_s:g} s")
                 continue
-            new = _Plan(w.target, plan.lane, t, w.passing or plan.passing)
+            new = _Plan(w.target, plan.lane, t, w.passing)
             tried = f" ({'; '.join(reasons)})" if reasons else ""
             return new, f"{w.why}: {why}{tried}", False
         if blocked_by is not None:
