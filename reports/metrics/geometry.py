@@ -60,21 +60,21 @@ def box_corners(cx: np.ndarray | float, cy: np.ndarray | float, heading_rad: np.
 # numpy's maximum/minimum propagate NaN; Python's max/min and comparisons do not.
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _pmax(a: float, b: float) -> float:
     if a != a or b != b:
         return _NAN
     return a if a > b else b
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _pmin(a: float, b: float) -> float:
     if a != a or b != b:
         return _NAN
     return a if a < b else b
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _proj_range(q: np.ndarray, nx: float, ny: float) -> tuple[float, float]:
     """(min, max) of the projections of the 4 corners q (4, 2) on (nx, ny), NaN-propagating."""
     p = q[0, 0] * nx + q[0, 1] * ny
@@ -87,7 +87,7 @@ def _proj_range(q: np.ndarray, nx: float, ny: float) -> tuple[float, float]:
     return lo, hi
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _overlap_quads(a: np.ndarray, b: np.ndarray) -> bool:
     """Separating-axis test of two rectangles (4, 2): no edge normal separates them."""
     for poly in range(2):
@@ -102,7 +102,7 @@ def _overlap_quads(a: np.ndarray, b: np.ndarray) -> bool:
     return True
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _point_segment(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> float:
     """Distance [m] from point p to segment a-b (the numpy reference's formula)."""
     abx = bx - ax
@@ -120,7 +120,7 @@ def _point_segment(px: float, py: float, ax: float, ay: float, bx: float, by: fl
     return math.sqrt(dx * dx + dy * dy)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _distance_quads(a: np.ndarray, b: np.ndarray) -> float:
     """Distance [m] between two rectangles (4, 2), 0 where they overlap."""
     if _overlap_quads(a, b):
@@ -137,7 +137,7 @@ def _distance_quads(a: np.ndarray, b: np.ndarray) -> float:
     return best
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _fill_corners(cx: float, cy: float, h: float, length: float, width: float,
                   out: np.ndarray) -> None:
     """The corners (4, 2) of one box into ``out`` (the order of :func:`box_corners`)."""
@@ -331,6 +331,19 @@ def swept_box_ttc(corners_a: np.ndarray, vel_a: np.ndarray, corners_b: np.ndarra
     out = np.empty(fa.shape[0])
     _ttc_kernel(fa, fva, fb, fvb, float(horizon_s), out)
     return out.reshape(shape)
+
+
+def load_kernels() -> None:
+    """Load (or compile once) every kernel of this module by calling it on tiny inputs: a
+    process that forks scenario processes calls it once, so that they inherit the
+    compiled code instead of each loading it from numba's cache."""
+    one = box_corners(0.0, 0.0, 0.0, 4.0, 2.0)[None]
+    boxes_overlap(one, one)
+    box_distance(one, one)
+    swept_box_ttc(one, np.zeros((1, 2)), one, np.zeros((1, 2)), 1.0)
+    z = np.zeros(1)
+    box_gaps(0.0, 0.0, 0.0, 4.0, 2.0, z, z, z, z + 4.0, z + 2.0)
+    nearest_box(0.0, 0.0, 0.0, 4.0, 2.0, z, z, z, z + 4.0, z + 2.0)
 
 
 # ------------------------------------------------------------------ numpy references

@@ -3,6 +3,10 @@
 One compiled call per step (:func:`reports.metrics.geometry.nearest_box`): the ego's
 box against all the scene's vehicles at once, far ones culled by their bounding
 circles, giving the nearest box, its distance and whether any box overlaps.
+
+Importing this module loads the geometry kernels (the loop's and the metrics'): the
+executors' forkserver imports the runner, hence this module, before it forks the
+scenario processes, so they inherit the compiled code instead of each loading it.
 """
 
 from __future__ import annotations
@@ -11,9 +15,11 @@ import math
 from dataclasses import dataclass
 
 from controllers.plant.vehicle_model import VehicleParams
-from reports.metrics.geometry import nearest_box
+from reports.metrics.geometry import load_kernels, nearest_box
 from suite.run.ego import EgoState
 from suite.world.protocol import Scene
+
+load_kernels()
 
 
 @dataclass(frozen=True)
