@@ -37,7 +37,11 @@ from suite.catalog.sweep import (
     sweep_shorts,
 )
 
-__all__ = ["load_catalog"]
+__all__ = ["MAX_STEPS", "load_catalog"]
+
+# At most this many control steps per run: the trace is allocated for the whole run
+# (~0.5 kB a step), so 1e6 steps (5.6 h at 20 ms) is ~0.5 GB; more is a typo.
+MAX_STEPS = 1_000_000
 
 # (merged scenario dict, its name, swept path -> value) of one scenario to build
 _Variant = tuple[dict[str, Any], str, dict[str, Any]]
@@ -154,8 +158,14 @@ class _Loader:
         for variant, vname, swept in variants:
             report = Report(self.err, index, vname, base, swept, set(entry),
                             name_reported=not name_ok)
+            variant = _nameable_net(variant, report)
             sc = build_variant(variant, report, catalog_path=self.path,
                                controllers=self.controllers, bundled=self.bundled)
+            if sc is not None and sc.steps > MAX_STEPS:
+                report.add("duration_s", f"a run of at most {MAX_STEPS} control steps "
+                           f"(duration_s / step_s; its trace is allocated for the whole run), "
+                           f"not {sc.steps}", sc.duration_s)
+                sc = None
             out.append((vname, where, sc if name_ok else None))
         return out
 
@@ -222,6 +232,16 @@ class _Loader:
                              "a non-empty list of values", values, base)
                 ok = False
         return ok
+
+
+def _nameable_net(variant: dict[str, Any], report: Report) -> dict[str, Any]:
+    """The variant, its ``net`` reported and left out when no file system could name it
+    (a NUL byte, a component over 255 bytes): looking it up would raise, not answer."""
+    problem = rules.nameable_path(variant.get("net"))
+    if problem is None:
+        return variant
+    report.add("net", f"a bundled net name or a .net.xml path: {problem}", variant["net"])
+    return {k: v for k, v in variant.items() if k != "net"}
 
 
 def _merge(defaults: dict[str, Any], entry: dict[str, Any]) -> dict[str, Any]:

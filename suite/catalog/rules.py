@@ -15,8 +15,8 @@ from suite.catalog.errors import SpecError
 
 __all__ = ["MAX_NAME_LEN", "MAX_SEED", "NAME_RE", "Rule", "as_float", "boolean", "check_fields",
            "edge_id", "friction", "integer", "is_number", "lane_change", "lane_key",
-           "lane_speeds", "lanes", "name_rule", "non_json_path", "num", "number_map",
-           "table_list"]
+           "lane_speeds", "lanes", "name_rule", "nameable_path", "non_json_path", "num",
+           "number_map", "table_list"]
 
 NAME_RE = re.compile(r"^[a-z0-9_]+$")
 MAX_SEED = 2**31 - 1
@@ -143,6 +143,24 @@ def name_rule(v: Any) -> str | None:
     if isinstance(v, str) and NAME_RE.match(v):
         return f"a name of at most {MAX_NAME_LEN} characters (it names a directory), not {len(v)}"
     return "a name matching [a-z0-9_]+"
+
+
+MAX_PATH_COMPONENT_BYTES = 255  # what file systems allow per name
+
+
+def nameable_path(v: Any) -> str | None:
+    """A string a file system can name as a path: no NUL character, no component longer
+    than 255 bytes (UTF-8). Other values are left to the key's own rule (None)."""
+    if not isinstance(v, str):
+        return None
+    if "\x00" in v:
+        return "a path without NUL characters"
+    longest = max((len(part.encode("utf-8", "surrogatepass")) for part in v.split("/")),
+                  default=0)
+    if longest > MAX_PATH_COMPONENT_BYTES:
+        return (f"a path whose every component has at most {MAX_PATH_COMPONENT_BYTES} bytes "
+                f"(one has {longest})")
+    return None
 
 
 def lanes(v: Any) -> str | None:

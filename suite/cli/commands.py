@@ -22,10 +22,15 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     from reports import write_reports
+    from suite.exec.outdir import OutputDirError, check_report_targets
 
     out = Path(args.dir)
     if not out.is_dir():
         raise UsageError(f"{out}: no such run directory")
+    try:
+        check_report_targets(out)
+    except OutputDirError as exc:
+        raise UsageError(str(exc)) from exc
     paths = write_reports(out)
     Output().line(f"report:  {paths.report_html}\nresults: {paths.results_csv}")
     return EXIT_OK

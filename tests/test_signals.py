@@ -1,0 +1,124 @@
+"""Real signals to a real ``python -m suite run`` (W3, W4): Ctrl-C then ``--resume`` gives
+the results of one uninterrupted run; SIGTERM (and even SIGKILL) of the parent leaves no
+process of the run behind."""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import signal
+import time
+import uuid
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from tests.reliability_support import (
+    Background,
+    hwyeval,
+    marked_env,
+    marked_pids,
+    results,
+    scenario_toml,
+    without_timing,
+    write_catalog,
+)
+
+pytestmark = pytest.mark.sumo
+
+N_SHORT = 6
+
+
+def _six(tmp_path: Path) -> Path:
+    # ~1 s each with lane_keep: one is always running when the signal comes
+    return write_catalog(tmp_path / "six.toml",
+                         [scenario_toml(f"run_{i}", lane=i % 2, pos_m=60.0 + 10 * i)
+                          for i in range(N_SHORT)], duration_s=20.0)
+
+
+def _wait_for(predicate: object, timeout_s: float, what: str) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():  # type: ignore[operator]
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def _staging(out: Path) -> list[Path]:
+    return [p for p in out.iterdir() if p.name.startswith(".partial-")] if out.is_dir() else []
+
+
+def test_ctrl_c_then_resume_gives_the_results_of_one_uninterrupted_run(tmp_path: Path) -> None:
+    catalog = _six(tmp_path)
+    reference = tmp_path / "reference"
+    proc = hwyeval("run", str(catalog), "--out", str(reference), "--no-log", "--jobs", "1")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+    out = tmp_path / "interrupted"
+    run = Background("run", str(catalog), "--out", str(out), "--no-log", "--jobs", "1")
+    try:
+        _wait_for(lambda: "[2/6]" in run.out and _staging(out), 300,
+                  "two finished scenarios and a third one running")
+        os.killpg(run.proc.pid, signal.SIGINT)  # Ctrl-C: the terminal signals the whole job
+        code = run.wait(60)
+    finally:
+        run.kill()
+    assert code == 130, run.out + run.err
+    assert "Traceback" not in run.err, run.err
+    line = next(x for x in run.out.splitlines() if x.startswith("interrupted: "))
+    match = re.fullmatch(r"interrupted: (\d+) of 6 done; resume with: (.*)", line)
+    assert match, line
+    done = int(match.group(1))
+    assert 2 <= done < N_SHORT
+    # what finished is kept and reported, exactly that; nothing half-written is left
+    assert not _staging(out)
+    partial = results(out)
+    assert len(partial) == done and set(partial["status"]) == {"pass"}
+    assert sorted(p.name for p in out.iterdir() if p.name.startswith("run_")) == \
+        sorted(partial.index)
+
+    command = shlex.split(match.group(2))
+    assert command[:2] == ["hwyeval", "run"] and "--resume" in command
+    resumed = hwyeval(*command[1:])
+    assert resumed.returncode == 0, resumed.stdout + resumed.stderr
+    assert f"resume: {done} of 6 already finished" in resumed.stdout
+    pd.testing.assert_frame_equal(without_timing(results(out)),
+                                  without_timing(results(reference)))
+
+
+def _two_long(tmp_path: Path) -> Path:
+    # stopped egos that never reach the end of the route: 20000 steps each
+    return write_catalog(tmp_path / "long.toml",
+                         [scenario_toml(f"stopped_{i}", lane=i, speed_mps=0.0) for i in (0, 1)],
+                         duration_s=1000.0)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
+def test_signal_to_the_parent_leaves_no_process_after_5_s(tmp_path: Path, sig: int) -> None:
+    marker = uuid.uuid4().hex
+    out = tmp_path / "out"
+    run = Background("run", str(_two_long(tmp_path)), "--out", str(out), "--no-log", "--jobs",
+                     "2", env=marked_env(marker))
+    try:
+        _wait_for(lambda: len(_staging(out)) == 2, 300, "both scenario processes running")
+        before = marked_pids(marker)
+        assert len(before) >= 3, before  # the parent, its forkserver, the two workers
+        os.kill(run.proc.pid, sig)  # a CI cancel signals the parent only
+        t0 = time.monotonic()
+        code = run.wait(30)
+        _wait_for(lambda: not marked_pids(marker), 5.0 - (time.monotonic() - t0),
+                  f"every process of the run to end (left: {marked_pids(marker)})")
+    finally:
+        run.kill()
+    if sig == signal.SIGTERM:
+        assert code == 143, run.out + run.err
+        assert "interrupted: 0 of 2 done; resume with: " in run.out
+        assert "Traceback" not in run.err, run.err
+        assert (out / "report.html").is_file() and (out / "results.csv").is_file()
+        assert not _staging(out)
+    else:
+        assert code == -signal.SIGKILL
+    assert not (out / "stopped_0").exists() and not (out / "stopped_1").exists()
