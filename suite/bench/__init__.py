@@ -149,7 +149,12 @@ def targets(figures: dict[str, Any]) -> dict[str, dict[str, Any]]:
     if sv and "skipped" not in sv:
         ratio = sv["ipopt_barrier_over_cgmres"]
         out["ipopt_over_cgmres_p50"] = _check("ipopt_over_cgmres_p50", ratio["raw"]["p50_s"])
-        out["ipopt_over_cgmres_var"] = _check("ipopt_over_cgmres_var", ratio["raw"]["var_s2"])
+        # The variance is judged on each update's minimum over the repeats: the update
+        # sequence is deterministic, so that keeps the solvers' own variation (Ipopt's
+        # iteration counts) and drops the shared machine's preemptions, which at ~70 us
+        # per C/GMRES update dominate its raw variance (both are printed).
+        out["ipopt_over_cgmres_var"] = _check("ipopt_over_cgmres_var",
+                                              ratio["min_of_repeats"]["var_s2"])
     return out
 
 
