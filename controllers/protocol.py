@@ -88,6 +88,8 @@ class Observation:
     lateral_reference_m: where the plan should settle across the reference path [m,
         left +]: 0 on the reference lane, the neighbour lane's centre while passing.
         It steps; controllers smooth it.
+    evasive: the lateral move evades a stopped vehicle ahead that the ego could not stop
+        for at a comfortable deceleration: a controller may move sideways faster.
     """
 
     t_s: float
@@ -96,6 +98,7 @@ class Observation:
     obstacles: Obstacles = field(default_factory=Obstacles.empty)
     pass_side: int = 0
     lateral_reference_m: float = 0.0
+    evasive: bool = False
 
 
 @dataclass(frozen=True, slots=True)

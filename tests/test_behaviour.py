@@ -116,13 +116,61 @@ def test_a_fast_car_closing_from_behind_in_the_target_lane_blocks_the_change(
     # A car at 35 m/s against the ego's 25 in the left lane: 40 m bumper gap behind, it
     # sheds the 10 m/s within the 36 m beyond the 4 m standstill at 1.4 m/s² (fine); at
     # 25 m it needs 100 / (2 * 21.2) = 2.4 m/s², more than the 2 m/s² bound (MOBIL).
+    # (The stalled car is far enough to stop for comfortably: not an evasive change.)
     ok = at(behaviour(path), 100.0, 0.0,
-            traffic([("stalled0", 200.0, 0.0, 0.0), ("fast", 55.2, W, 35.0)]), THREE_LANES)
-    assert ok.side == SIDE_LEFT
+            traffic([("stalled0", 270.0, 0.0, 0.0), ("fast", 55.2, W, 35.0)]), THREE_LANES)
+    assert ok.side == SIDE_LEFT and not ok.evasive
     no = at(behaviour(path), 100.0, 0.0,
-            traffic([("stalled0", 200.0, 0.0, 0.0), ("fast", 70.0, W, 35.0)]), THREE_LANES)
+            traffic([("stalled0", 270.0, 0.0, 0.0), ("fast", 70.0, W, 35.0)]), THREE_LANES)
     assert no.side == SIDE_RIGHT and "left gap too short" in no.reason
     assert "closing from behind" in no.reason
+
+
+def test_an_evasive_change_accepts_a_follower_braking_harder(path: FrenetPath) -> None:
+    # 40 m behind a stalled car at 25 m/s: stopping would need 625 / (2 * 35.2) = 8.9
+    # m/s², so passing is evasive; the fast car's 2.4 m/s² (above the 2 m/s² bound of an
+    # ordinary change) is within the evasive bound of 4.5 m/s²: the ego goes left.
+    d = at(behaviour(path), 100.0, 0.0,
+           traffic([("stalled0", 145.0, 0.0, 0.0), ("fast", 70.0, W, 35.0)]), THREE_LANES)
+    assert d.side == SIDE_LEFT and d.evasive
+    # The speed target no longer brakes for the car being evaded.
+    assert d.target_speed_mps == 25.0
+
+
+def test_an_evasive_change_carries_on_when_aborting_is_worse(path: FrenetPath) -> None:
+    b = behaviour(path)
+    nb = traffic([("stalled0", 145.0, 0.0, 0.0)])
+    assert at(b, 100.0, 0.0, nb, THREE_LANES).evasive
+    # 0.8 m into the move a car closes fast from behind in the left lane (16 m, 12 m/s
+    # faster: 144 / (2 * 15) = 4.7 m/s² for it, beyond every bound); stopping for the
+    # stalled car 24 m ahead would need 625 / (2 * 23) = 13.5 m/s²: carry on.
+    closing = traffic([("stalled0", 145.0, 0.0, 0.0), ("fast", 95.0, W, 37.0)])
+    d = at(b, 116.0, 0.8, closing, THREE_LANES, t=100.7)
+    assert d.side == SIDE_LEFT and not d.reason.startswith("abort"), d.reason
+    # An ordinary change in the same gap is aborted.
+    b2 = behaviour(path)
+    far = traffic([("stalled0", 270.0, 0.0, 0.0)])
+    assert at(b2, 100.0, 0.0, far, THREE_LANES).side == SIDE_LEFT
+    d2 = at(b2, 116.0, 0.8, traffic([("stalled0", 270.0, 0.0, 0.0), ("fast", 95.0, W, 37.0)]),
+            THREE_LANES, t=100.7)
+    assert d2.reason.startswith("abort left"), d2.reason
+
+
+def test_minimal_risk_braking_known_answers() -> None:
+    from controllers.behaviour.types import Obstacles
+    from controllers.two_loop.fallback import needed_decel_mps2
+    x0 = np.array([100.0, 0.0, 0.0])
+    obs = Obstacles(s_m=np.array([150.0, 130.0]), y_m=np.array([0.0, 3.5]),
+                    speed_s_mps=np.array([0.0, 0.0]), speed_y_mps=np.zeros(2),
+                    semi_a_m=np.array([10.0, 10.0]), semi_b_m=np.array([2.5, 2.5]))
+    # Only the first covers the ego's offset: 20² / (2 (50 - 10)) = 5 m/s².
+    assert needed_decel_mps2(x0, 20.0, obs) == pytest.approx(5.0)
+    # Closing on a moving ellipse: (20 - 10)² / (2 * 40).
+    moving = Obstacles(s_m=obs.s_m, y_m=obs.y_m, speed_s_mps=np.array([10.0, 0.0]),
+                       speed_y_mps=np.zeros(2), semi_a_m=obs.semi_a_m, semi_b_m=obs.semi_b_m)
+    assert needed_decel_mps2(x0, 20.0, moving) == pytest.approx(1.25)
+    assert needed_decel_mps2(np.array([145.0, 0.0, 0.0]), 5.0, obs) == math.inf
+    assert needed_decel_mps2(x0, 20.0, Obstacles.empty()) == 0.0
 
 
 def test_a_slower_car_in_the_passing_lane_is_followed_not_passed(path: FrenetPath) -> None:

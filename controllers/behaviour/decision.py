@@ -97,6 +97,7 @@ class _Plan:
     origin: int
     since_s: float
     passing: str = ""
+    evasive: bool = False
 
     @property
     def changing(self) -> bool:
@@ -106,13 +107,15 @@ class _Plan:
 @dataclass(frozen=True)
 class _Want:
     """A wanted change: target lane, where the manoeuvre ends (path s), why, whether it
-    may skip the hold time, and the vehicle it passes ('' none)."""
+    may skip the hold time, the vehicle it passes ('' none) and whether it evades a
+    stopped vehicle that the ego cannot stop for comfortably."""
 
     target: int
     end_s_m: float
     why: str
     urgent: bool
     passing: str = ""
+    evasive: bool = False
 
 
 @dataclass
@@ -147,7 +150,8 @@ class LaneBehaviour:
         obstacles = self._ellipses(scene, order, plan, side, lead if follow else -1)
         return Decision(obstacles=obstacles, side=side, reason=reason, target_speed_mps=target,
                         lateral_reference_m=scene.offset_m(plan.lane),
-                        obstacle_ids=tuple(traffic.ids[i] for i in order))
+                        obstacle_ids=tuple(traffic.ids[i] for i in order),
+                        evasive=plan.changing and plan.evasive)
 
     def _scene(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext) -> LaneScene:
         fn = project_traffic(self.path, traffic, ego)
@@ -179,7 +183,8 @@ class LaneBehaviour:
             return plan, "keep lane: free" if plan.lane == 0 else "keep lane", False
         reasons = []
         for w in want:
-            ok, why = lane_change_safety(sc, w.target, w.end_s_m, lc, lc.safe_decel_mps2,
+            bound = lc.evasive_decel_mps2 if w.evasive else lc.safe_decel_mps2
+            ok, why = lane_change_safety(sc, w.target, w.end_s_m, lc, bound,
                                          self.ego.allow_shoulder)
             if not ok:
                 reasons.append(why)
@@ -187,7 +192,7 @@ class LaneBehaviour:
             if t - plan.since_s < lc.hold_s and not w.urgent:
                 reasons.append(f"{w.why}: holding the lane for {lc.hold_s:g} s")
                 continue
-            new = _Plan(w.target, plan.lane, t, w.passing)
+            new = _Plan(w.target, plan.lane, t, w.passing, w.evasive)
             tried = f" ({'; '.join(reasons)})" if reasons else ""
             return new, f"{w.why}: {why}{tried}", False
         if blocked_by is not None:
@@ -206,13 +211,29 @@ class LaneBehaviour:
             return _Plan(plan.lane, plan.lane, t, plan.passing), f"in the {side} lane", False
         if progress < lc.commit_fraction:
             end = sc.ego.s_m + max(sc.ego.speed_mps, 5.0) * 4.0
-            ok, why = lane_change_safety(sc, plan.lane, end, lc, lc.abort_decel_mps2,
+            bound = lc.evasive_decel_mps2 if plan.evasive else lc.abort_decel_mps2
+            ok, why = lane_change_safety(sc, plan.lane, end, lc, bound,
                                          self.ego.allow_shoulder)
-            if not ok:
+            if not ok and not self._evasion_beats_abort(sc, plan):
                 return (_Plan(plan.origin, plan.origin, t, plan.passing),
                         f"abort {side}: {why}", False)
         what = f"passing {plan.passing}" if plan.passing else f"changing {side}"
         return plan, what, False
+
+    def _evasion_beats_abort(self, sc: LaneScene, plan: _Plan) -> bool:
+        """An evasive change whose gap closes: aborting means stopping for the stopped
+        car in the origin lane, carrying on means the new follower brakes. Carry on when
+        the ego's stop would need the harder braking (the lesser harm)."""
+        if not plan.evasive:
+            return False
+        lead = sc.lead(plan.origin)
+        if lead is None:
+            return False
+        stop = _decel_to_stop_mps2(sc.ego.speed_mps, lead.gap_m - 1.0)
+        rear = sc.follower(plan.lane)
+        follower = 0.0 if rear is None else _decel_to_stop_mps2(
+            max(rear.speed_mps - sc.ego.speed_mps, 0.0), rear.gap_m - 1.0)
+        return stop > follower
 
     def _lane_speed(self, sc: LaneScene, rel: int, set_speed: float
                     ) -> tuple[float, Neighbour | None]:
@@ -242,12 +263,14 @@ class LaneBehaviour:
             end = float(sc.fn.s_m[lead.index] + 0.5 * sc.fn.length_m[lead.index]
                         + lc.pass_after_m)
             lid = sc.traffic.ids[lead.index]
+            evasive = stopped and self._needs_evasion(sc.ego.speed_mps, lead.gap_m)
             for step, name in ((1, "left"), (-1, "right")):
                 if step < 0 and lead.speed_mps >= lc.undertake_below_mps:
                     continue  # never undertake a moving car (keep-right rule)
                 v_there, _ = self._lane_speed(sc, c + step, set_speed)
                 if v_there - v_here > lc.incentive_mps:
-                    wants.append(_Want(c + step, end, f"pass {lid} on the {name}", stopped, lid))
+                    wants.append(_Want(c + step, end, f"pass {lid} on the {name}", stopped, lid,
+                                       evasive))
         slot = sc.slot(c)
         horizon = max(sc.ego.speed_mps, 5.0) * 8.0 + 50.0
         if slot is not None and slot.continues_m < horizon:
@@ -262,6 +285,13 @@ class LaneBehaviour:
                 wants.append(_Want(home, sc.ego.s_m + max(sc.ego.speed_mps, 5.0) * 4.0,
                                    f"return {name}", False))
         return wants, (lead if blocked else None)
+
+    def _needs_evasion(self, speed_mps: float, gap_m: float) -> bool:
+        """Stopping s0 short of a stopped car ``gap_m`` ahead needs more than the
+        comfortable deceleration: passing it is an evasive manoeuvre."""
+        fp = self.params.follow
+        room = gap_m - fp.standstill_m
+        return room <= 0.0 or speed_mps**2 / (2.0 * room) > fp.comfort_decel_mps2 * 1.5
 
     def _passed(self, sc: LaneScene, plan: _Plan) -> bool:
         """The vehicle being passed is gone or ``pass_after_m`` behind the ego's rear."""
@@ -283,8 +313,9 @@ class LaneBehaviour:
             lead = sc.lead(rel)
             if lead is None:
                 continue
-            if rel == plan.origin and plan.changing and self._clears(sc, plan, lead):
-                continue
+            if rel == plan.origin and plan.changing and (plan.evasive
+                                                          or self._clears(sc, plan, lead)):
+                continue  # an evasive change goes round it: braking to it only hinders
             vt = follow_speed_mps(lead.gap_m, lead.speed_mps, v, set_speed, fp,
                                   float(self._accel[lead.index]))
             if vt < target:
@@ -373,6 +404,13 @@ class LaneBehaviour:
         return Obstacles(s_m=fn.s_m[order].copy(), y_m=y, speed_s_mps=fn.v_s_mps[order].copy(),
                          speed_y_mps=fn.v_y_mps[order].copy(), semi_a_m=semi_a,
                          semi_b_m=semi_b)
+
+
+def _decel_to_stop_mps2(closing_mps: float, room_m: float) -> float:
+    """Constant deceleration [m/s²] that removes ``closing_mps`` within ``room_m``."""
+    if closing_mps <= 0.0:
+        return 0.0
+    return math.inf if room_m <= 0.0 else closing_mps**2 / (2.0 * room_m)
 
 
 def _leave_ego_outside(ds_m: float, dy_m: float, semi_a_m: float, semi_b_m: float,

@@ -47,7 +47,10 @@ class LaneChangeParams:
     vehicle counts as blocking; block_margin_mps: how much slower it must be;
     undertake_below_mps: a vehicle ahead is passed on the right only while it is slower
     than this (stopped or crawling: a broken-down car, a queue); a moving car is never
-    undertaken, the ego follows it or passes on the left (keep-right rule).
+    undertaken, the ego follows it or passes on the left (keep-right rule);
+    evasive_decel_mps2: the braking an *evasive* change (round a stopped car the ego
+    cannot stop for comfortably) may ask of the new follower and of the ego, to start and
+    to carry on (a driver behind braking hard beats running into a stopped car).
     """
 
     front_time_gap_s: float = 0.6
@@ -64,12 +67,13 @@ class LaneChangeParams:
     plan_horizon_s: float = 6.0
     block_margin_mps: float = 1.0
     undertake_below_mps: float = 2.0
+    evasive_decel_mps2: float = 4.5
 
     def __post_init__(self) -> None:
         for name in ("front_time_gap_s", "rear_time_gap_s", "standstill_m", "safe_decel_mps2",
                      "abort_decel_mps2", "incentive_mps", "done_tolerance_m", "hold_s",
                      "pass_after_m", "lane_end_margin_m", "plan_horizon_s",
-                     "block_margin_mps", "undertake_below_mps"):
+                     "block_margin_mps", "undertake_below_mps", "evasive_decel_mps2"):
             v = getattr(self, name)
             if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v)
                                            and v >= 0):
@@ -80,6 +84,8 @@ class LaneChangeParams:
                              f"got {self.commit_fraction!r}")
         if self.abort_decel_mps2 < self.safe_decel_mps2:
             raise ValueError("LaneChangeParams.abort_decel_mps2 must be >= safe_decel_mps2")
+        if self.evasive_decel_mps2 < self.abort_decel_mps2:
+            raise ValueError("LaneChangeParams.evasive_decel_mps2 must be >= abort_decel_mps2")
 
 
 def _decel_needed(closing_mps: float, gap_m: float, standstill_m: float) -> float:

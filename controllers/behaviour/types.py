@@ -228,7 +228,9 @@ class Decision:
     side: SIDE_LEFT / SIDE_RIGHT (pass), SIDE_FOLLOW (no side free: follow), SIDE_NONE;
     reason: why (text for logs); target_speed_mps: the speed set-point (lowered while
     following); lateral_reference_m: where the plan should settle across the reference
-    path [m, left +] (the neighbour lane's centre while passing, 0 otherwise).
+    path [m, left +] (the neighbour lane's centre while passing, 0 otherwise);
+    evasive: the lane change under way evades a stopped vehicle the ego could not stop
+    for at the comfortable deceleration (the controller may move sideways faster).
     """
 
     obstacles: Obstacles = field(default_factory=Obstacles.empty)
@@ -237,6 +239,7 @@ class Decision:
     target_speed_mps: float = math.nan
     lateral_reference_m: float = 0.0
     obstacle_ids: tuple[str, ...] = ()
+    evasive: bool = False
 
     @property
     def pass_side(self) -> int:

@@ -249,7 +249,7 @@ def simulate(controller: Controller, path_xy: np.ndarray,
         cmd = controller.step(Observation(
             t_s=t, state=st.copy(), target_speed_mps=decision.target_speed_mps,
             obstacles=decision.obstacles, pass_side=decision.pass_side,
-            lateral_reference_m=decision.lateral_reference_m))
+            lateral_reference_m=decision.lateral_reference_m, evasive=decision.evasive))
         if not (math.isfinite(cmd.steer_rad) and math.isfinite(cmd.torque_nm)):
             raise ValueError(f"non-finite command at t={t}")
         ego_c = vp.cg_to_box_centre_m

@@ -36,7 +36,7 @@ import numpy as np
 from controllers.behaviour.types import ObstaclePolicy
 from controllers.params import to_dict
 from controllers.path.frenet import FrenetPath, _points_many, path_gamma, path_project_local
-from controllers.protocol import Command, Observation, ScenarioContext, StepDiagnostics
+from controllers.protocol import Command, Observation, Obstacles, ScenarioContext, StepDiagnostics
 from controllers.two_loop.diagnostics import TwoLoopDiagnostics
 from controllers.two_loop.fallback import MinimalRiskManeuver
 from controllers.two_loop.lateral import LateralReferenceShaper
@@ -182,7 +182,8 @@ class TwoLoopController:
         speed = math.hypot(float(st[3]), float(st[4]))
         y_ref = self.lateral.update(float(observation.lateral_reference_m),
                                     None if first else dt, float(x0[1]), speed,
-                                    self.planner.horizon_growth(t_s - self._t_first))
+                                    self.planner.horizon_growth(t_s - self._t_first),
+                                    evasive=bool(observation.evasive))
         c_y = self.lateral.weight(self.params.outer.c_y)
         target = float(observation.target_speed_mps)
         if self.mrm.due(t_s):  # back to the planner, restarted at the measured state
@@ -204,7 +205,7 @@ class TwoLoopController:
             if solved is not None and solved.fallback:
                 self.mrm.engage(t_s, speed, self._last_torque / (self._vp[0] * self._vp[6]))
             if solved is None or self.mrm.active:
-                plan = self._mrm_plan(x0, y_ref, target, dt)
+                plan = self._mrm_plan(x0, y_ref, target, dt, observation.obstacles)
             else:
                 plan = solved
                 updates = self.planner.updates_per_period
@@ -266,9 +267,11 @@ class TwoLoopController:
                                        observation.obstacles, int(observation.pass_side), dt)
         return steer, torque, lw
 
-    def _mrm_plan(self, x0: np.ndarray, y_ref: float, target: float, dt: float) -> OuterPlan:
+    def _mrm_plan(self, x0: np.ndarray, y_ref: float, target: float, dt: float,
+                  obstacles: Obstacles) -> OuterPlan:
         o = self.params.outer
-        return self.mrm.plan(self._path(), x0, y_ref, target, dt, o.horizon_s, o.n_stages)
+        return self.mrm.plan(self._path(), x0, y_ref, target, dt, o.horizon_s, o.n_stages,
+                             obstacles)
 
     def _planner(self) -> OuterPlanner:
         if self.planner is None:

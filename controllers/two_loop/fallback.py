@@ -7,7 +7,12 @@ and follows this manoeuvre instead, committed for at least ``hold_s``:
 * speed: a jerk-limited ramp (:class:`TargetSpeedRamp`, deceleration ``decel_mps2``,
   jerk ``jerk_mps3``) starting at the *measured* speed and acceleration, toward the
   behaviour's speed target (which follows the lead car) but never above the speed at
-  engagement: it brakes smoothly, it never speeds up;
+  engagement: it brakes smoothly, it never speeds up. Unless that is too little: with
+  an obstacle ellipse ahead covering the ego's lateral position (the followed lead's
+  wall, a stopped car), at distance d from the ego's CG to the ellipse and closing at
+  dv, the braking needed is b = dv² / (2 d); while 1.2 b exceeds ``decel_mps2`` the ramp
+  brakes at up to ``emergency_decel_mps2`` with jerk ``emergency_jerk_mps3``
+  (a collision is worse than a hard stop);
 * path: along the reference at the shaped lateral reference (the lane the behaviour
   holds), so the preview tracker keeps the car in its lane.
 
@@ -27,6 +32,7 @@ import numpy as np
 
 from controllers.params import check_leaves, check_range, param
 from controllers.path.frenet import FrenetPath
+from controllers.protocol import Obstacles
 from controllers.two_loop.outer.ocp import TargetSpeedRamp
 from controllers.two_loop.outer.protocol import OuterPlan
 
@@ -40,12 +46,18 @@ class FallbackParams:
     hold_s: float = param(2.0, "s", "shortest manoeuvre before the planner re-engages")
     max_hold_s: float = param(8.0, "s", "longest hold after repeated failures")
     rearm_s: float = param(4.0, "s", "a failure this soon after re-engaging doubles the hold")
+    emergency_decel_mps2: float = param(8.0, "m/s²",
+                                        "hardest braking when an obstacle ahead needs it")
+    emergency_jerk_mps3: float = param(15.0, "m/s³", "jerk bound of that braking")
 
     def __post_init__(self) -> None:
         check_leaves(self)
-        for name in ("decel_mps2", "jerk_mps3", "hold_s", "max_hold_s", "rearm_s"):
+        for name in ("decel_mps2", "jerk_mps3", "hold_s", "max_hold_s", "rearm_s",
+                     "emergency_decel_mps2", "emergency_jerk_mps3"):
             check_range(self, name, gt=0.0)
         check_range(self, "max_hold_s", ge=self.hold_s)
+        check_range(self, "emergency_decel_mps2", ge=self.decel_mps2)
+        check_range(self, "emergency_jerk_mps3", ge=self.jerk_mps3)
 
 
 class MinimalRiskManeuver:
@@ -91,15 +103,30 @@ class MinimalRiskManeuver:
         self.active = False
         self._released = t_s
 
+    def _brace(self, x0: np.ndarray, obstacles: Obstacles | None) -> None:
+        """Ramp limits for this step: the usual ones, or harder if an obstacle ahead needs
+        it (module docstring)."""
+        p = self.params
+        need = needed_decel_mps2(x0, self.ramp.speed_mps, obstacles)
+        if 1.2 * need > p.decel_mps2:
+            self.ramp.decel_mps2 = min(1.2 * need, p.emergency_decel_mps2)
+            self.ramp.jerk_mps3 = p.emergency_jerk_mps3
+        else:
+            self.ramp.decel_mps2 = p.decel_mps2
+            self.ramp.jerk_mps3 = p.jerk_mps3
+
     @property
     def hold_s(self) -> float:
         """The current hold (doubled after repeated failures)."""
         return self._hold
 
     def plan(self, path: FrenetPath, x0: np.ndarray, lateral_m: float, target_mps: float,
-             dt_s: float, horizon_s: float, n_stages: int) -> OuterPlan:
+             dt_s: float, horizon_s: float, n_stages: int,
+             obstacles: Obstacles | None = None) -> OuterPlan:
         """Advance the ramp by ``dt_s`` toward min(target, speed at engagement) and give
-        the manoeuvre over the horizon: (s, y = lateral_m, gamma(s)) at N + 1 nodes."""
+        the manoeuvre over the horizon: (s, y = lateral_m, gamma(s)) at N + 1 nodes.
+        ``obstacles`` (the ellipses of this step) set the emergency braking."""
+        self._brace(x0, obstacles)
         set_point = min(target_mps if math.isfinite(target_mps) else 0.0, self._cap)
         v0 = self.ramp.update(max(set_point, 0.0), dt_s)
         a0 = self.ramp.ramp_accel_mps2
@@ -112,3 +139,23 @@ class MinimalRiskManeuver:
         return OuterPlan(stage_times_s=tau, states=states, speeds_mps=v[:-1].copy(),
                          headings_rad=states[:-1, 2].copy(), residual=math.nan,
                          fallback=True, guard_fired=0, solve_s=0.0)
+
+
+def needed_decel_mps2(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | None) -> float:
+    """Braking [m/s²] that keeps the ego's CG (Frenet x0 = (s, y, ...), speed v) out of
+    the nearest ellipse ahead covering its lateral offset: b = (v - v_j)² / (2 d_j), d_j
+    = s_j - A_j - s the distance to the ellipse's rear point along s, v_j the ellipse's
+    speed along s; inf when the CG is already at or past that point (0 if nothing)."""
+    if obstacles is None or obstacles.count == 0:
+        return 0.0
+    s, y = float(x0[0]), float(x0[1])
+    ds = obstacles.s_m - s
+    ahead = (ds > 0.0) & (np.abs(obstacles.y_m - y) < obstacles.semi_b_m)
+    if not np.any(ahead):
+        return 0.0
+    d = ds[ahead] - obstacles.semi_a_m[ahead]
+    closing = np.maximum(speed_mps - obstacles.speed_s_mps[ahead], 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = np.where(d > 0.0, closing**2 / (2.0 * np.maximum(d, 1e-9)),
+                     np.where(closing > 0.0, np.inf, 0.0))
+    return float(np.max(b))

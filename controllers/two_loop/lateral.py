@@ -7,7 +7,9 @@ step in a parameter is a step in its residual; every control period the shaper m
 1. a rate limiter r toward r_raw by at most rate h per sub-step, with
    rate = min(``rate_mps``, V ``heading_rad``) times the planner's relative horizon
    length (V the measured speed: a slow car cannot follow the rate with a sensible
-   heading; a growing C/GMRES horizon is short at first);
+   heading; a growing C/GMRES horizon is short at first); while the behaviour marks the
+   move evasive (a stopped car ahead the ego cannot stop for comfortably) the
+   ``evasive_*`` limits apply instead;
 2. a critically damped second-order filter (time constant T_f = ``filter_s``):
    yr'' = (r - yr)/T_f² - 2 yr'/T_f, integrated by semi-implicit Euler in sub-steps
    h <= T_f/10 (T_f = 0: yr = r, yr' = dr/dt).
@@ -42,10 +44,13 @@ class LateralRefParams:
     heading_rad: float = param(0.1, "rad", "the rate limit is at most V times this")
     c_y_engaged: float = param(20.0, "1/(m² s)", "Cy while a lateral reference is engaged")
     weight_time_s: float = param(1.0, "s", "blend time of Cy from/to the OCP's c_y")
+    evasive_rate_mps: float = param(4.0, "m/s", "rate limit while the move is evasive")
+    evasive_heading_rad: float = param(0.25, "rad", "heading bound of that rate (V times this)")
 
     def __post_init__(self) -> None:
         check_leaves(self)
-        for name in ("rate_mps", "heading_rad", "weight_time_s"):
+        for name in ("rate_mps", "heading_rad", "weight_time_s", "evasive_rate_mps",
+                     "evasive_heading_rad"):
             check_range(self, name, gt=0.0)
         for name in ("filter_s", "c_y_engaged"):
             check_range(self, name, ge=0.0)
@@ -70,6 +75,7 @@ class LateralReferenceShaper:
         self._yr_rate = math.nan
         self._phi = math.nan
         self._engaged = math.nan
+        self._evasive = False
 
     @property
     def raw_m(self) -> float:
@@ -97,12 +103,15 @@ class LateralReferenceShaper:
         self._yr_rate = 0.0
 
     def update(self, raw_m: float, dt_s: float | None, y_now_m: float, speed_mps: float,
-               rate_scale: float) -> float:
+               rate_scale: float, evasive: bool = False) -> float:
         """Advance by dt_s (None: first step, start at y_now_m at rest); returns yr [m].
 
         raw_m: the behaviour's reference; y_now_m: the car's lateral offset [m];
-        speed_mps: its speed; rate_scale: the planner's relative horizon length in [0, 1].
+        speed_mps: its speed; rate_scale: the planner's relative horizon length in [0, 1];
+        evasive: the move evades an obstacle (the evasive rate limits apply, the weight
+        blends in four times faster).
         """
+        self._evasive = bool(evasive)
         if math.isfinite(raw_m):
             self._raw = raw_m
         elif not math.isfinite(self._raw):
@@ -123,7 +132,7 @@ class LateralReferenceShaper:
         engaged = self._raw != 0.0 or (self._engaged > 0.5 and (
             abs(self._yr - self._raw) > _YR_SETTLED_M or abs(y_ok - self._raw) > _CAR_SETTLED_M))
         self._engaged = 1.0 if engaged else 0.0
-        step = dt_s / self.params.weight_time_s
+        step = dt_s / self.params.weight_time_s * (4.0 if self._evasive else 1.0)
         self._phi = min(self._phi + step, 1.0) if engaged else max(self._phi - step, 0.0)
 
     def _advance(self, dt_s: float, speed_mps: float, rate_scale: float) -> None:
@@ -132,7 +141,10 @@ class LateralReferenceShaper:
         n_sub = 1 if tf <= 0.0 else max(1, math.ceil(dt_s / (0.1 * tf)))
         h = dt_s / n_sub
         v = speed_mps if math.isfinite(speed_mps) and speed_mps > 0.0 else 0.0
-        rate = min(p.rate_mps, v * p.heading_rad)
+        if self._evasive:
+            rate = min(p.evasive_rate_mps, v * p.evasive_heading_rad)
+        else:
+            rate = min(p.rate_mps, v * p.heading_rad)
         rate *= rate_scale
         max_step = rate * h
         r, yr, yd = self._ramp, self._yr, self._yr_rate

@@ -47,7 +47,8 @@ def observe(t_s: float, ego: EgoState, decision: Decision) -> Observation:
     """The controller's view of this step."""
     return Observation(t_s=t_s, state=ego.state.copy(), target_speed_mps=decision.target_speed_mps,
                        obstacles=decision.obstacles, pass_side=decision.pass_side,
-                       lateral_reference_m=decision.lateral_reference_m)
+                       lateral_reference_m=decision.lateral_reference_m,
+                       evasive=decision.evasive)
 
 
 def run_loop(stages: Stages, n_steps: int) -> str:
