@@ -19,7 +19,7 @@ from pathlib import Path
 from reports.record import Failure
 from reports.tables import RunEntry
 
-_INVALID_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]")
+_INVALID_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
 KEY_METRICS = ("collision", "min_gap_m", "min_ttc_s", "progress_m", "offroad_s",
                "max_abs_lat_acc_mps2", "max_abs_jerk_mps3", "rms_lat_dev_m", "step_ms_p99",
                "deadline_misses")
@@ -51,7 +51,7 @@ def _safe_name(text: str) -> str:
 
 def junit_tree(runs: Sequence[RunEntry], suite_name: str = "hwyeval") -> ET.ElementTree:
     """The JUnit XML tree for the runs."""
-    root = ET.Element("testsuites", name=suite_name)
+    root = ET.Element("testsuites", name=xml_text(suite_name))
     by_controller: dict[str, list[RunEntry]] = {}
     for run in runs:
         by_controller.setdefault(run.controller, []).append(run)
@@ -61,7 +61,7 @@ def junit_tree(runs: Sequence[RunEntry], suite_name: str = "hwyeval") -> ET.Elem
         failures = sum(1 for r in members if r.status == "fail")
         errors = sum(1 for r in members if r.status in ("error", "timeout"))
         time_s = sum(float(_time(r)) for r in members)
-        suite = ET.SubElement(root, "testsuite", name=f"{suite_name}.{controller}",
+        suite = ET.SubElement(root, "testsuite", name=xml_text(f"{suite_name}.{controller}"),
                               tests=str(len(members)), failures=str(failures),
                               errors=str(errors), skipped="0", time=f"{time_s:.3f}")
         for run in members:

@@ -11,7 +11,6 @@ entry with the reason (its page says it).
 from __future__ import annotations
 
 import dataclasses
-import json
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +20,15 @@ from reports.html import Links, render_index, render_run_page
 from reports.html.style import CSS
 from reports.junit import write_junit
 from reports.manifest import read_manifest
-from reports.record import RUN_JSON, ControllerArrays, NeighbourColumns, Trace, iter_run_dirs
+from reports.record import (
+    RUN_JSON,
+    ControllerArrays,
+    NeighbourColumns,
+    RecordError,
+    Trace,
+    iter_run_dirs,
+)
+from reports.record.codec import read_json
 from reports.tables import (
     EVERYTHING,
     Pools,
@@ -60,11 +67,14 @@ def controller_of(run_dir: Path) -> tuple[str, dict[str, Any]] | None:
     variant labels need every run's before the first page is written); None when
     unreadable (the run is then reported as an error by :func:`read_entry`)."""
     try:
-        info = json.loads((run_dir / RUN_JSON).read_text())["info"]
-        options = info.get("controller_options") or {}
-        return str(info["controller"]), options if isinstance(options, dict) else {}
-    except (OSError, ValueError, KeyError, TypeError):
+        doc = read_json(run_dir / RUN_JSON)
+    except RecordError:
         return None
+    info = doc.get("info") if isinstance(doc, dict) else None
+    if not isinstance(info, dict) or not isinstance(info.get("controller"), str):
+        return None  # a malformed run.json: read_entry reports it
+    options = info.get("controller_options")
+    return info["controller"], options if isinstance(options, dict) else {}
 
 
 def _pages(runs: list[tuple[Path, str]], links: Links, title: str, pools: Pools

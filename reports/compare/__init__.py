@@ -26,14 +26,20 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from reports.compare.findings import CompareRow, match_keys, metric_rows, status_rows
+from reports.compare.findings import (
+    CompareRow,
+    DuplicateRuns,
+    match_keys,
+    metric_rows,
+    status_rows,
+)
 from reports.compare.timing import TimingLine, load_note, timing_lines
 from reports.compare.tolerances import MetricTolerance, Tolerances
 from reports.manifest import Manifest, read_manifest
 from reports.provenance import Difference, differences
 from reports.tables import RunEntry, collect_runs
 
-__all__ = ["CompareResult", "CompareRow", "MetricTolerance", "NothingToCompare",
+__all__ = ["CompareResult", "CompareRow", "DuplicateRuns", "MetricTolerance", "NothingToCompare",
            "TimingLine", "Tolerances", "compare_evaluated", "compare_runs"]
 
 

@@ -1,6 +1,7 @@
 """Findings of a comparison: run matching, status changes, metric and timing changes.
 
-Matching: runs are matched by (scenario, controller). When each directory holds exactly
+Matching: runs are matched by (scenario, controller); two run directories of one side
+with the same key raise :class:`DuplicateRuns`. When each directory holds exactly
 one controller and they differ (comparing controller A against B), runs are matched by
 scenario name alone. An unreadable run directory is matched by its directory name.
 
@@ -73,6 +74,11 @@ class CompareRow:
         return self.kind in WARNING_KINDS and not self.gate
 
 
+class DuplicateRuns(ValueError):
+    """Two run directories of one side are the same run (scenario and controller): a
+    comparison would silently keep one of them (the CLI exits 2)."""
+
+
 def match_keys(base: Sequence[RunEntry], new: Sequence[RunEntry]
                ) -> tuple[dict[str, RunEntry], dict[str, RunEntry]]:
     """The runs of each side by their matching key (see the module doc)."""
@@ -87,8 +93,15 @@ def match_keys(base: Sequence[RunEntry], new: Sequence[RunEntry]
         # an unreadable run directory knows only its name: it takes the key of the
         # other side's run in the directory of that name
         by_dir = {r.run_id: key(r) for r in other if r.record is not None}
-        return {(by_dir.get(r.run_id, key(r)) if r.record is None else key(r)): r
-                for r in runs}
+        out: dict[str, RunEntry] = {}
+        for r in runs:
+            k = by_dir.get(r.run_id, key(r)) if r.record is None else key(r)
+            if k in out:
+                raise DuplicateRuns(f"{out[k].run_dir} and {r.run_dir} are both {k}: "
+                                    "which one to compare is ambiguous (remove one, or "
+                                    "compare outputs of one catalog run each)")
+            out[k] = r
+        return out
 
     return keyed(base, new), keyed(new, base)
 

@@ -147,6 +147,10 @@ class Tolerances:
             if key not in known:
                 raise ValueError(f"unknown tolerances key {key!r}; "
                                  f"valid: {', '.join(sorted(known))}")
+        for key in ("metrics", "timing"):
+            if not isinstance(data.get(key) or {}, Mapping):
+                raise ValueError(f"{key}: expected a table ([{key}] or [{key}.<name>]), "
+                                 f"got {data[key]!r}")
         return cls(metrics=_metrics(data.get("metrics") or {}, base.metrics),
                    timing=_timing(data.get("timing") or {}, base.timing),
                    timing_floor_ms=_floor(data.get("timing_floor_ms", base.timing_floor_ms)),

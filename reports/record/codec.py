@@ -17,6 +17,7 @@ import dataclasses
 import json
 import math
 import os
+import re
 import types
 import typing
 from collections.abc import Mapping
@@ -26,6 +27,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 T = TypeVar("T")
+_SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 class RecordError(ValueError):
@@ -164,12 +166,39 @@ def write_json_atomic(path: Path, data: Any) -> None:
 
 
 def read_json(path: Path) -> Any:
-    """Parsed JSON of ``path``; RecordError if unreadable or not JSON."""
+    """Parsed JSON of ``path``; RecordError if unreadable, not JSON, or holding text that
+    is not Unicode (a lone surrogate escape such as ``"\\ud800"``: nothing could write it
+    out again, not the HTML, the CSV, nor pandas)."""
     try:
-        return json.loads(path.read_text())
+        doc = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise RecordError(path, "", "a readable JSON file", f"{type(exc).__name__}: {exc}") \
             from exc
+    bad = _lone_surrogate(doc)
+    if bad is not None:
+        raise RecordError(path, bad[0], "text without lone surrogate escapes (\\ud800-\\udfff)",
+                          bad[1])
+    return doc
+
+
+def _lone_surrogate(value: Any, key: str = "") -> tuple[str, str] | None:
+    """(dotted key, text) of the first string or key holding a lone surrogate."""
+    if isinstance(value, str):
+        return (key, value) if _SURROGATE.search(value) else None
+    if isinstance(value, dict):
+        for k, v in value.items():
+            sub = f"{key}.{k}" if key else str(k)
+            if _SURROGATE.search(k):
+                return sub, k
+            found = _lone_surrogate(v, sub)
+            if found is not None:
+                return found
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            found = _lone_surrogate(v, f"{key}.{i}" if key else str(i))
+            if found is not None:
+                return found
+    return None
 
 
 def finite_or_nan(value: Any) -> float:

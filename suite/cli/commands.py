@@ -39,7 +39,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_compare(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from reports.compare import NothingToCompare, Tolerances, compare_runs
+    from reports.compare import DuplicateRuns, NothingToCompare, Tolerances, compare_runs
     from reports.compare.render import as_json
 
     try:
@@ -54,7 +54,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path(args.new) / "compare"
     try:
         result = compare_runs(Path(args.base), Path(args.new), out, tol)
-    except NothingToCompare as exc:
+    except (NothingToCompare, DuplicateRuns) as exc:
         raise UsageError(str(exc)) from exc
     Output().line(as_json(result) if args.json else result.summary_text())
     return int(result.exit_code)
