@@ -43,6 +43,7 @@ from suite.cli.common import (
     positive_int,
     positive_seconds,
 )
+from suite.cli.paper import add_paper_parser
 from suite.cli.run import cmd_run
 
 __all__ = ["EXIT_FAIL", "EXIT_INPUT", "EXIT_OK", "UsageError", "build_parser", "main"]
@@ -140,6 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("name", nargs="?", default=None)
     _add_plugin(s)
     s.set_defaults(func=cmd_controllers)
+    add_paper_parser(sub)
     return p
 
 
