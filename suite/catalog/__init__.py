@@ -76,8 +76,10 @@ Keys of a scenario (all may also appear in ``[defaults]`` except ``name`` and ``
                     this key says.
 ``seed``            int in [0, 2**31 - 1]; default 0.
 ``allow_shoulder``  bool, default false: the ego may use a hard shoulder.
-``criteria``        table name -> number: pass/fail limits overriding the defaults of the
-                    metrics (names are not checked here).
+``criteria``        table name -> number or ``"off"``: pass/fail limits overriding the
+                    defaults of the metrics (``reports.metrics.criteria``; a name must be
+                    one of its criteria); ``"off"`` switches that criterion off (TOML has
+                    no null).
 ``record_radius_m`` > 0, default 150: vehicles within this distance of the ego are logged.
 ``timeout_s``       > 0: wall-clock limit of one run. Default: none.
 ``friction``        tyre-road friction coefficient mu of the road, in (0, 2]; default 1.0

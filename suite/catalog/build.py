@@ -13,7 +13,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
-from suite.catalog import rules
 from suite.catalog.controller_check import ControllerChecker
 from suite.catalog.errors import MISSING, SpecError
 from suite.catalog.network_checks import check_placements, resolve_net, resolve_route
@@ -113,19 +112,20 @@ def _scalars(d: dict[str, Any], report: Report) -> dict[str, Any]:
 
 
 def _criteria(d: dict[str, Any], report: Report) -> dict[str, Any]:
-    """The scenario's criteria table (names known to the metrics, values numbers)."""
+    """The scenario's criteria table (names known to the metrics, values numbers or
+    "off", which switches that criterion off)."""
     criteria = d.get("criteria", {})
     if not isinstance(criteria, dict):
-        report.add("criteria", "a table of name -> finite number", criteria)
+        report.add("criteria", 'a table of name -> finite number or "off"', criteria)
         return {}
-    from reports.metrics.criteria import Criteria
+    from reports.metrics.criteria import Criteria, override_problem
 
     valid = Criteria.names()
     for k, v in criteria.items():
         if k not in valid:
             report.add(f"criteria.{k}", f"a known criterion, one of {', '.join(valid)}", k)
-        elif not rules.is_number(v):
-            report.add(f"criteria.{k}", "a finite number", v)
+        elif v is None or override_problem(v) is not None:
+            report.add(f"criteria.{k}", 'a finite number or "off"', v)
     return criteria
 
 

@@ -282,6 +282,20 @@ class ControllerSpec:
         return {"name": self.name, "options": self.options_dict()}
 
 
+CRITERION_OFF = "off"  # reports.metrics.criteria.OFF: switches a criterion off
+
+
+def _criteria_map(v: Any) -> str | None:
+    """A table of criterion name -> finite number or "off"."""
+    what = 'a table of name -> finite number or "off"'
+    if not isinstance(v, Mapping):
+        return what
+    if any(not isinstance(k, str) or not (rules.is_number(x) or x == CRITERION_OFF)
+           for k, x in v.items()):
+        return what
+    return None
+
+
 @dataclass(frozen=True)
 class Scenario:
     """One fully resolved, validated scenario run."""
@@ -300,7 +314,7 @@ class Scenario:
     step_s: float
     seed: int
     allow_shoulder: bool = False
-    criteria: Mapping[str, float] = field(default_factory=lambda: FrozenMap())
+    criteria: Mapping[str, float | str] = field(default_factory=lambda: FrozenMap())
     sweep_values: Mapping[str, Any] = field(default_factory=lambda: FrozenMap())
     record_radius_m: float = 150.0
     timeout_s: float | None = None
@@ -313,7 +327,7 @@ class Scenario:
         "name": rules.name_rule, "family": rules.name_rule,
         "duration_s": rules.num(0.0, strict=True), "step_s": rules.sumo_step,
         "seed": rules.integer(0, rules.MAX_SEED), "allow_shoulder": rules.boolean,
-        "criteria": rules.number_map, "record_radius_m": rules.num(0.0, strict=True),
+        "criteria": _criteria_map, "record_radius_m": rules.num(0.0, strict=True),
         "timeout_s": rules.num(0.0, strict=True, optional=True), "friction": rules.friction,
         "sumo_step_s": _optional_sumo_step,
     }
@@ -356,7 +370,7 @@ class Scenario:
         object.__setattr__(self, "catalog_path", Path(self.catalog_path))
         object.__setattr__(self, "net_path", Path(self.net_path))
         object.__setattr__(self, "criteria", FrozenMap(
-            {k: float(v) for k, v in self.criteria.items()}))
+            {k: (v if v == CRITERION_OFF else float(v)) for k, v in self.criteria.items()}))
         object.__setattr__(self, "sweep_values", FrozenMap(self.sweep_values))
         rules.as_float(self, "duration_s", "step_s", "record_radius_m", "friction")
         if self.timeout_s is not None:

@@ -66,6 +66,7 @@ def scenario_info(scenario: Scenario, catalog_name: str, vehicle: VehicleParams,
         allow_shoulder=bool(scenario.allow_shoulder), ego=ego_box(vehicle),
         controller_options=scenario.controller.options_dict(),
         controller_params=dict(controller_params or {}),
-        criteria={k: float(v) for k, v in scenario.criteria.items()},
+        criteria={k: (v if isinstance(v, str) else float(v))  # "off" stays "off"
+                  for k, v in scenario.criteria.items()},
         scenario_spec=spec, record_radius_m=float(scenario.record_radius_m),
         hwyeval_version=__version__, friction=float(scenario.friction))
