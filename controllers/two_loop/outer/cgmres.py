@@ -399,7 +399,7 @@ class CgmresOuter:
         for j in range(self.n_slots):
             if tab[j, 6] > 0.5 and not used[j]:
                 tab[j, 8] = -fade_rate
-                if tab[j, 7] <= 0.0:
+                if tab[j, 7] <= 0.0 and self._multipliers_gone(j):
                     self._free_slot(j)
         for q in range(assign.shape[0]):
             new = assign[q] < 0
@@ -443,6 +443,16 @@ class CgmresOuter:
                 used[best] = True
                 assign[q] = best
         return used, assign
+
+    def _multipliers_gone(self, j: int) -> bool:
+        """Slot j's multipliers mu_ij have decayed (|mu| <= 1e-3 Cz at every stage): only
+        then do its rows become the trivial ones. Freed while mu still lags behind the
+        faded weight, the mu dc/dx terms vanish from every costate at once and E jumps
+        (to ~4 one step after the fade-out, before this check)."""
+        p = self.params
+        m = self.stage_width
+        mu = self._u.reshape(p.n_stages, m)[:, 2 + self.n_slots + j]
+        return bool(np.max(np.abs(mu)) <= 1e-3 * p.c_z)
 
     def _free_slot(self, j: int) -> None:
         self._obs[j] = obstacle_table(1)[0]
