@@ -329,3 +329,22 @@ def test_relative_lanes_follow_the_worlds_lane_index_across_a_shift() -> None:
     fn = FrenetTraffic(np.array([150.0, 150.0]), np.array([0.0, 3.5]), np.zeros(2),
                        np.zeros(2), np.full(2, 4.8), np.full(2, 1.9))
     assert relative_lanes(nb, fn, ctx, W).tolist() == [0, 1]
+
+
+def test_a_car_on_an_ending_lane_leads_the_lane_it_must_merge_into(path: FrenetPath) -> None:
+    # Road "e1": lane 0 an acceleration lane ending at route position 330 m, merging left
+    # into lane 1, the ego's lane (reference index 1 on e1). The ego is at route position
+    # 200 m (path s 100): a car on the acceleration lane 30 m ahead at 20 m/s has 100 m
+    # left, less than 6 s of its driving: it leads the ego's lane (speed target lowered).
+    slots = {0: LaneSlot(0, W, True, False, offset_m=-W, continues_m=200.0),
+             1: LaneSlot(1, W, True, False, offset_m=0.0)}
+    ctx = LaneContext(slots, 1, {"e1": 1}, {"e1": {0: (330.0, 1)}}, 200.0)
+    merger = traffic([("ramp0", 130.0, -W, 20.0)], road="e1", lanes=[0])
+    d = behaviour(path).decide(EgoFrenet(100.0, 0.0, 100.0, 0.0, 28.0, 100.0), merger, ctx,
+                               28.0)
+    assert d.target_speed_mps < 28.0 and "ramp0" in d.obstacle_ids
+    # With 230 m of its lane left (more than 6 s at 20 m/s) it is not a lead yet.
+    far = LaneContext(slots, 1, {"e1": 1}, {"e1": {0: (460.0, 1)}}, 200.0)
+    d2 = behaviour(path).decide(EgoFrenet(100.0, 0.0, 100.0, 0.0, 28.0, 100.0), merger, far,
+                                28.0)
+    assert d2.target_speed_mps == 28.0

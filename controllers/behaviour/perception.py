@@ -12,7 +12,9 @@ plant-only simulator) it is the lane whose centre is nearest the vehicle's offse
 (nearest vehicle ahead) and the follower (nearest behind), with bumper gaps. A vehicle
 counts in a lane by its relative lane *or* because its box reaches into the lane (a car
 straddling the line) or, ahead of the ego, will within a second at its lateral speed (a
-cut-in is followed from its start, not from when the world moves it into the lane).
+cut-in is followed from its start, not from when the world moves it into the lane), or
+because its own lane ends within 6 s of its driving next to this one (a car on an
+acceleration lane must merge: it leads the lane it merges into).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 INTRUSION_M = 0.3  # a box reaching this far past a lane's edge is in that lane
 CUT_IN_HORIZON_S = 1.0  # a car whose sideways motion brings it into a lane this soon leads
+MERGE_HORIZON_S = 6.0  # a car whose lane ends within this much of its driving must merge
 
 
 @dataclass(frozen=True)
@@ -168,6 +171,25 @@ class LaneScene:
         lo, hi = np.minimum(y_now, y_then), np.maximum(y_now, y_then)
         return np.asarray((hi > -reach) & (lo < reach), dtype=bool)
 
+    def merging(self, rel: int) -> BoolArray:
+        """Vehicles whose lane ends (an acceleration lane, a lane drop:
+        ``LaneContext.ending_lanes_by_road``) within ``MERGE_HORIZON_S`` of their driving
+        and whose traffic merges into relative lane ``rel``: they must move into it soon
+        (on whichever road they are, ahead of the ego's own)."""
+        out = np.zeros(self.traffic.count, dtype=bool)
+        ends = self.context.ending_lanes_by_road
+        pos = self.context.route_pos_m
+        if not ends or not math.isfinite(pos):
+            return out
+        tr = self.traffic
+        for j in range(tr.count):
+            end = ends.get(tr.road_id[j], {}).get(int(tr.lane_index[j]))
+            if end is None or int(self.rel_lane[j]) + end[1] != rel:
+                continue
+            left_m = end[0] - (pos + float(self.fn.s_m[j] - self.ego.s_m))
+            out[j] = left_m < MERGE_HORIZON_S * max(float(self.fn.v_s_mps[j]), 5.0)
+        return out
+
     def _nearest(self, rel: int, ahead: bool) -> Neighbour | None:
         if self.traffic.count == 0:
             return None
@@ -175,6 +197,8 @@ class LaneScene:
         half = 0.5 * (self.fn.length_m + self.ego_length_m)
         in_lane = (self.rel_lane == rel) | self.intruding(
             rel, CUT_IN_HORIZON_S if ahead else 0.0)
+        if ahead:
+            in_lane |= self.merging(rel)
         mask = in_lane & (ds > 0.0) if ahead else in_lane & (ds <= 0.0)
         if not np.any(mask):
             return None

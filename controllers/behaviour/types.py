@@ -100,11 +100,19 @@ class LaneContext:
     """The lanes at the ego's position, by lane index, and the index of the lane the
     reference path follows there (``reference_index``); ``reference_index_by_road``
     gives that index on every road (edge) of the route near the ego, so that a vehicle
-    whose road and lane index the world reports is placed in its lane exactly."""
+    whose road and lane index the world reports is placed in its lane exactly.
+
+    ``ending_lanes_by_road``: road -> lane index -> (route position [m] where that lane
+    ends, the side its traffic merges to: +1 left, -1 right) for the lanes of the route
+    that end without leaving it (acceleration lanes, lane drops; exits are not there);
+    ``route_pos_m``: the ego's route position [m] (NaN unknown)."""
 
     slots: Mapping[int, LaneSlot]
     reference_index: int
     reference_index_by_road: Mapping[str, int] = field(default_factory=dict)
+    ending_lanes_by_road: Mapping[str, Mapping[int, tuple[float, int]]] = field(
+        default_factory=dict)
+    route_pos_m: float = math.nan
 
     def slot(self, index: int) -> LaneSlot | None:
         return self.slots.get(index)

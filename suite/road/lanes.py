@@ -54,6 +54,27 @@ class LaneContextMap:
         self._length_m = network.route_length_m(self._route)
         self._starts = network.route_edge_starts_m(self._route)
         self._profiles: dict[str, dict[int, tuple[FloatArray, FloatArray]]] = {}
+        self._ending = self._ending_lanes()
+
+    def _ending_lanes(self) -> dict[str, dict[int, tuple[float, int]]]:
+        """Route edge -> lane index -> (route position where the lane ends, merge side)
+        for lanes that end on the route without leaving it (not through, not an exit);
+        the side is towards the neighbour that reaches further (+1 left, -1 right)."""
+        g = self._graph
+        out: dict[str, dict[int, tuple[float, int]]] = {}
+        for k, edge in enumerate(self._route):
+            lanes = g.lanes(k)
+            for i in lanes:
+                if g.is_through(k, i) or g.is_exit(k, i):
+                    continue
+                reach = {d: g.reach(k, i + d) for d in (1, -1) if i + d in lanes}
+                if not reach:
+                    continue
+                side = max(reach, key=lambda d: (reach[d], d))  # left on a tie
+                if reach[side] <= g.reach(k, i):
+                    continue
+                out.setdefault(edge, {})[i] = (self._end_m(k, i), side)
+        return out
 
     def _profile(self, k: int) -> dict[int, tuple[FloatArray, FloatArray]]:
         """Lane index -> (s on the path, offset) along that lane of route edge k."""
@@ -100,4 +121,4 @@ class LaneContextMap:
         if ref is None:  # outside the reference's window: the lane nearest the path
             known = {i: abs(sl.offset_m) for i, sl in slots.items() if math.isfinite(sl.offset_m)}
             ref = min(known, key=known.__getitem__) if known else min(slots)
-        return LaneContext(slots, ref, self._reference.lane_index_by_edge)
+        return LaneContext(slots, ref, self._reference.lane_index_by_edge, self._ending, pos)
