@@ -105,9 +105,9 @@ def test_killed_and_timed_out_runs_carry_their_controller_and_nan_metrics(
     plugin = plugin_file(tmp_path)
     catalog = write_catalog(tmp_path / "w16.toml", [
         scenario_toml("killed", extra='controller = "doomed_at_start"\n'),
-        scenario_toml("too_slow", speed_mps=0.0, extra="timeout_s = 2.0\n"),
+        scenario_toml("too_slow", speed_mps=0.0, extra="timeout_s = 1.5\n"),
         scenario_toml("fine"),
-    ], duration_s=500.0)
+    ], duration_s=10000.0)  # 200000 steps: far more than 1.5 s of wall time
     out = tmp_path / "out"
     proc = hwyeval("run", str(catalog), "--out", str(out), "--no-log", "--plugin", str(plugin))
     assert proc.returncode == 1, proc.stdout + proc.stderr

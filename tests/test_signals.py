@@ -90,10 +90,10 @@ def test_ctrl_c_then_resume_gives_the_results_of_one_uninterrupted_run(tmp_path:
 
 
 def _two_long(tmp_path: Path) -> Path:
-    # stopped egos that never reach the end of the route: 20000 steps each
+    # stopped egos that never reach the end of the route: 200000 steps each
     return write_catalog(tmp_path / "long.toml",
                          [scenario_toml(f"stopped_{i}", lane=i, speed_mps=0.0) for i in (0, 1)],
-                         duration_s=1000.0)
+                         duration_s=10000.0)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])

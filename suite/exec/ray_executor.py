@@ -143,6 +143,8 @@ class RayExecutor:
             if on_done is not None:
                 on_done(record)
 
+        if stop.requested:
+            return results
         refs = self._submit(jobs, done)
         remaining = list(refs)
         try:
