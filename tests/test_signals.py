@@ -32,10 +32,10 @@ N_SHORT = 6
 
 
 def _six(tmp_path: Path) -> Path:
-    # ~1 s each with lane_keep: one is always running when the signal comes
+    # 2000 steps each (2 km of the 2.5 km road): one is running when the signal comes
     return write_catalog(tmp_path / "six.toml",
                          [scenario_toml(f"run_{i}", lane=i % 2, pos_m=60.0 + 10 * i)
-                          for i in range(N_SHORT)], duration_s=20.0)
+                          for i in range(N_SHORT)], duration_s=100.0)
 
 
 def _wait_for(predicate: object, timeout_s: float, what: str) -> None:
