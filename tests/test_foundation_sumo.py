@@ -56,35 +56,7 @@ timeout_s = 0.3
 
 # A valid catalog whose run fails at run time: a plug-in controller that drives like
 # lane_keep and raises at its 50th step (validation cannot know).
-CRASHING_PLUGIN = """
-from controllers import registry
-
-
-class CrashAtStep50:
-    name = "crash_at_step_50"
-
-    def __init__(self):
-        self.inner = registry.make("lane_keep")
-        self.steps = 0
-
-    def reset(self, context):
-        self.inner.reset(context)
-
-    def step(self, observation):
-        self.steps += 1
-        if self.steps == 50:
-            raise RuntimeError("deliberate crash at step 50")
-        return self.inner.step(observation)
-
-    def parameters(self):
-        return {"name": self.name}
-
-    def __getattr__(self, attr):  # obstacle policy, diagnostics type: lane_keep's
-        return getattr(self.inner, attr)
-
-
-registry.register("crash_at_step_50", lambda options: CrashAtStep50())
-"""
+CRASH_PLUGIN = Path(__file__).resolve().parent / "crash_plugin.py"
 
 
 def hwyeval(*args: str) -> subprocess.CompletedProcess[str]:
@@ -98,11 +70,9 @@ def catalog_run(
     base = tmp_path_factory.mktemp("foundation")
     catalog = base / "foundation.toml"
     catalog.write_text(CATALOG)
-    plugin = base / "crash_plugin.py"
-    plugin.write_text(CRASHING_PLUGIN)
     out = base / "out"
     proc = hwyeval("run", str(catalog), "--out", str(out), "--jobs", "2", "--no-log",
-                   "--plugin", str(plugin))
+                   "--plugin", str(CRASH_PLUGIN))
     return out, proc
 
 
@@ -200,7 +170,7 @@ def test_same_seed_same_catalog_gives_identical_results(catalog_run, tmp_path: P
     catalog = out.parent / "foundation.toml"
     again = tmp_path / "again"
     proc = hwyeval("run", str(catalog), "--out", str(again), "--no-log", "--jobs", "1",
-                   "--filter", "lane_keep_*", "--plugin", str(out.parent / "crash_plugin.py"))
+                   "--filter", "lane_keep_*", "--plugin", str(CRASH_PLUGIN))
     assert proc.returncode == 1, proc.stderr
     a = _results(out).loc[["lane_keep_into_stalled_car", "lane_keep_free_curve_with_traffic"]]
     b = _results(again).loc[["lane_keep_into_stalled_car", "lane_keep_free_curve_with_traffic"]]

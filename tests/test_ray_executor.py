@@ -31,16 +31,17 @@ ego = { lane = 0, pos_m = 60.0, speed_mps = 20.0 }
 name = "ray_crash"
 net = "straight_2lane"
 ego = { lane = 0, pos_m = 300.0, speed_mps = 20.0 }
-stalled = [ { lane = 0, pos_m = 300.0 } ]
+controller = "crash_at_step_50"
 """)
     out = tmp_path / "out"
     proc = subprocess.run(
         [sys.executable, "-m", "suite", "run", str(catalog), "--out", str(out), "--executor",
-         "ray", "--no-log"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+         "ray", "--no-log", "--plugin", str(ROOT / "tests" / "crash_plugin.py")], cwd=ROOT,
+        capture_output=True, text=True, timeout=600)
     assert proc.returncode == 1, proc.stdout + proc.stderr
     res = pd.read_csv(out / "results.csv").set_index("scenario")
     assert res.loc["ray_free", "status"] == "pass"
     assert res.loc["ray_free", "progress_m"] == pytest.approx(80.0, rel=0.02)
     assert res.loc["ray_crash", "status"] == "error"
     assert (out / "ray_free" / "trace.parquet").is_file()  # shipped back as an archive
-    assert "could not insert the ego" in (out / "ray_crash" / "traceback.txt").read_text()
+    assert "deliberate crash at step 50" in (out / "ray_crash" / "traceback.txt").read_text()

@@ -8,8 +8,10 @@ L_d = clip(k_la * V, L_d,min, L_d,max)): with alpha the angle between the car's
 heading and the line from the rear axle to the look-ahead point on the path,
     delta = atan(2 L sin(alpha) / L_d).
 Speed: a = K_p (V_t - V) + K_i * integral(V_t - V) (clamped integral), and the
-torque that yields it on the drag-free STVM: T = m R a (split over both axles
-by the plant).
+torque that yields it: T = R (m a + F_road(V)), F_road the drag and rolling resistance
+the plant's car has at V (:func:`controllers.plant.vehicle_model.road_load_n`, fed
+forward so that the set speed is held without a slow integral catching up), split over
+both axles by the plant.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from typing import Any, ClassVar
 from controllers.behaviour.types import ObstaclePolicy
 from controllers.params import build, check_leaves, check_range, param, to_dict
 from controllers.path.frenet import FrenetPath
+from controllers.plant.vehicle_model import road_load_n
 from controllers.protocol import (
     Command,
     ConfigError,
@@ -100,7 +103,7 @@ class LaneKeepController:
         self._integral = min(max(self._integral + err * dt, -p.integral_limit_mps),
                              p.integral_limit_mps)
         acc = p.speed_kp_per_s * err + p.speed_ki_per_s2 * self._integral
-        torque = veh.mass_kg * veh.wheel_radius_m * acc
+        torque = veh.wheel_radius_m * (veh.mass_kg * acc + road_load_n(veh, speed))
         elapsed = time.perf_counter() - t0
         return Command(steer_rad=steer, torque_nm=torque,
                        diagnostics=StepDiagnostics(outer_s=elapsed, inner_s=0.0))

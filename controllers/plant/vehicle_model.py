@@ -170,6 +170,16 @@ class VehicleParams:
         return out
 
 
+def road_load_n(vehicle: VehicleParams, speed_mps: float) -> float:
+    """Aerodynamic drag plus rolling resistance [N] at ``speed_mps`` (forward): what a
+    speed controller feeds forward to hold a speed on the plant (rho c_d A v² / 2 +
+    c_rr m g)."""
+    v = max(float(speed_mps), 0.0)
+    return (0.5 * vehicle.air_density_kgpm3 * vehicle.drag_coeff * vehicle.frontal_area_m2
+            * v * v + vehicle.rolling_resistance_coeff * vehicle.mass_kg * vehicle.gravity_mps2
+            * (1.0 if v > 0.1 else v / 0.1))
+
+
 def _is_real(value: object) -> bool:
     return (isinstance(value, int | float) and not isinstance(value, bool)
             and math.isfinite(value))
