@@ -359,13 +359,14 @@ class LaneBehaviour:
         lanes = sc.lanes_occupied() | {plan.lane, plan.origin}
         ds = sc.ds_m
         dist = np.hypot(ds, sc.fn.y_m - sc.ego.lat_m)
-        in_lanes = np.isin(sc.rel_lane, np.array(sorted(lanes)))
+        in_lanes = np.zeros(sc.traffic.count, dtype=bool)
+        for r in lanes:
+            in_lanes |= sc.rel_lane == r
         leads = {n.index for r in lanes if (n := sc.lead(r)) is not None}
         if lead >= 0:
             leads.add(lead)
-        is_lead = np.isin(np.arange(sc.traffic.count), np.array(sorted(leads), dtype=np.intp))
-        relevant = ((dist <= pol.detection_distance_m) & (ds >= -pol.rear_range_m)
-                    & (in_lanes | is_lead))
+        in_lanes[list(leads)] = True  # a lead by intrusion or merging, whatever its lane
+        relevant = (dist <= pol.detection_distance_m) & (ds >= -pol.rear_range_m) & in_lanes
         # A car behind in the lane the ego keeps (or leaves) is its follower's business:
         # as an ellipse it only pushes the ego forward and, squeezed against the lead's,
         # sideways out of its lane. Behind the ego only the lane moved into counts.

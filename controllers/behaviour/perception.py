@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import numpy.typing as npt
@@ -95,13 +96,36 @@ class LaneScene:
     lanes: dict[int, LaneSlot]
     lane_width_m: float
 
-    @property
+    @cached_property
     def ds_m(self) -> FloatArray:
+        """Arc-length offset of every vehicle's centre from the ego's CG [m] (n,)."""
         return self.fn.s_m - self.ego.s_m
+
+    @cached_property
+    def _half_lengths_m(self) -> FloatArray:
+        return 0.5 * (self.fn.length_m + self.ego_length_m)
+
+    @cached_property
+    def _order(self) -> list[int]:
+        return sorted(self.context.slots)
+
+    @cached_property
+    def _neighbours(self) -> dict[tuple[int, bool], Neighbour | None]:
+        return {}
+
+    @cached_property
+    def _offsets(self) -> dict[int, float]:
+        return {}
 
     def offset_m(self, rel: int) -> float:
         """Centre of relative lane ``rel`` from the reference lane's centre [m, left +]:
         lanes shift together where netconvert moves them, so this is the lane spacing."""
+        cache = self._offsets
+        if rel not in cache:
+            cache[rel] = self._offset_m(rel)
+        return cache[rel]
+
+    def _offset_m(self, rel: int) -> float:
         ref = self.context.reference_index
         slots = self.context.slots
         index = self._index_of(rel)
@@ -113,7 +137,7 @@ class LaneScene:
             - self.context.offset_of(ref, self.lane_width_m)
 
     def _index_of(self, rel: int) -> int | None:
-        order = sorted(self.context.slots)
+        order = self._order
         ref = self.context.reference_index
         if ref not in order:
             return None
@@ -191,10 +215,18 @@ class LaneScene:
         return out
 
     def _nearest(self, rel: int, ahead: bool) -> Neighbour | None:
+        """Lead or follower of lane ``rel``, computed once per scene."""
+        key = (rel, ahead)
+        cache = self._neighbours
+        if key not in cache:
+            cache[key] = self._find_nearest(rel, ahead)
+        return cache[key]
+
+    def _find_nearest(self, rel: int, ahead: bool) -> Neighbour | None:
         if self.traffic.count == 0:
             return None
         ds = self.ds_m
-        half = 0.5 * (self.fn.length_m + self.ego_length_m)
+        half = self._half_lengths_m
         in_lane = (self.rel_lane == rel) | self.intruding(
             rel, CUT_IN_HORIZON_S if ahead else 0.0)
         if ahead:
