@@ -26,7 +26,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from reports.metrics.context import RunContext
 from reports.metrics.values import Measured, extreme, measured
@@ -66,6 +65,10 @@ def sg(values: np.ndarray, dt: float, deriv: int = 0) -> FloatColumn:
         return np.full(n, np.nan)
     w = sg_window(n, dt)
     if w > SG_POLYORDER:
+        # Imported here: scipy.signal costs ~0.9 s to import, which every command line
+        # that reads records (reports, compare, list) would otherwise pay at start.
+        from scipy.signal import savgol_filter
+
         out: FloatColumn = savgol_filter(y, window_length=w, polyorder=SG_POLYORDER,
                                          deriv=deriv, delta=dt, mode="interp")
         return out
