@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reports.metrics import geometry
 from reports.metrics.context import RunContext
 from reports.metrics.geometry import box_corners
 from reports.record.columns import BoolColumn, FloatColumn, IntColumn
@@ -34,39 +35,10 @@ def swept_box_ttc(corners_a: np.ndarray, vel_a: np.ndarray, corners_b: np.ndarra
 
     corners_*: (..., 4, 2) as from :func:`reports.metrics.geometry.box_corners`;
     vel_*: (..., 2) [m/s]. 0 if they overlap now, +inf if they never touch within
-    ``horizon_s``.
+    ``horizon_s``. The compiled swept separating-axis test of
+    :func:`reports.metrics.geometry.swept_box_ttc`, with this module's horizon.
     """
-    a = np.asarray(corners_a, dtype=np.float64)
-    b = np.asarray(corners_b, dtype=np.float64)
-    a, b = np.broadcast_arrays(a, b)
-    w = np.broadcast_to(np.asarray(vel_a, dtype=np.float64) - np.asarray(vel_b, dtype=np.float64),
-                        a.shape[:-2] + (2,))
-    t_enter = np.full(a.shape[:-2], -np.inf)
-    t_exit = np.full(a.shape[:-2], np.inf)
-    never = np.zeros(a.shape[:-2], dtype=bool)
-    for poly in (a, b):
-        for i in range(2):
-            edge = poly[..., i + 1, :] - poly[..., i, :]
-            normal = np.stack([-edge[..., 1], edge[..., 0]], axis=-1)
-            norm = np.linalg.norm(normal, axis=-1, keepdims=True)
-            normal = normal / np.maximum(norm, 1e-12)
-            pa = np.einsum("...kd,...d->...k", a, normal)
-            pb = np.einsum("...kd,...d->...k", b, normal)
-            a_min, a_max = pa.min(-1), pa.max(-1)
-            b_min, b_max = pb.min(-1), pb.max(-1)
-            c = np.einsum("...d,...d->...", w, normal)
-            still = np.abs(c) < 1e-9
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t1 = (b_min - a_max) / c
-                t2 = (b_max - a_min) / c
-            lo = np.where(still, -np.inf, np.minimum(t1, t2))
-            hi = np.where(still, np.inf, np.maximum(t1, t2))
-            never |= still & ((a_min > b_max) | (a_max < b_min))
-            t_enter = np.maximum(t_enter, lo)
-            t_exit = np.minimum(t_exit, hi)
-    hit = ~never & (t_enter <= t_exit) & (t_exit >= 0.0)
-    ttc = np.where(hit, np.maximum(t_enter, 0.0), np.inf)
-    out: FloatColumn = np.where(ttc <= horizon_s, ttc, np.inf)
+    out: FloatColumn = geometry.swept_box_ttc(corners_a, vel_a, corners_b, vel_b, horizon_s)
     return out
 
 
