@@ -23,6 +23,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from controllers.behaviour.types import require_numbers
+
 
 @dataclass(frozen=True)
 class FollowParams:
@@ -37,12 +39,8 @@ class FollowParams:
     anticipation_s: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("time_gap_s", "standstill_m", "gap_close_s", "comfort_decel_mps2",
-                     "anticipation_s"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v)
-                                           and v > 0):
-                raise ValueError(f"FollowParams.{name} must be a finite number > 0, got {v!r}")
+        require_numbers(self, ("time_gap_s", "standstill_m", "gap_close_s",
+                               "comfort_decel_mps2", "anticipation_s"), strict=True)
         if self.time_gap_s < 1.5:
             raise ValueError(f"FollowParams.time_gap_s must be >= 1.5 s, got {self.time_gap_s}")
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from controllers.behaviour.perception import LaneScene, Neighbour
+from controllers.behaviour.types import require_numbers
 
 
 @dataclass(frozen=True)
@@ -70,15 +71,11 @@ class LaneChangeParams:
     evasive_decel_mps2: float = 4.5
 
     def __post_init__(self) -> None:
-        for name in ("front_time_gap_s", "rear_time_gap_s", "standstill_m", "safe_decel_mps2",
-                     "abort_decel_mps2", "incentive_mps", "done_tolerance_m", "hold_s",
-                     "pass_after_m", "lane_end_margin_m", "plan_horizon_s",
-                     "block_margin_mps", "undertake_below_mps", "evasive_decel_mps2"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v)
-                                           and v >= 0):
-                raise ValueError(f"LaneChangeParams.{name} must be a finite number >= 0, "
-                                 f"got {v!r}")
+        require_numbers(self, ("front_time_gap_s", "rear_time_gap_s", "standstill_m",
+                               "safe_decel_mps2", "abort_decel_mps2", "incentive_mps",
+                               "done_tolerance_m", "hold_s", "pass_after_m",
+                               "lane_end_margin_m", "plan_horizon_s", "block_margin_mps",
+                               "undertake_below_mps", "evasive_decel_mps2"))
         if not 0.0 < self.commit_fraction < 1.0:
             raise ValueError("LaneChangeParams.commit_fraction must be in (0, 1), "
                              f"got {self.commit_fraction!r}")

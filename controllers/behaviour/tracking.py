@@ -15,12 +15,11 @@ starts at a = 0; one not seen for ``forget_s`` is dropped.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.behaviour.types import FloatArray, Traffic
+from controllers.behaviour.types import FloatArray, Traffic, require_numbers
 
 
 @dataclass(frozen=True)
@@ -32,12 +31,7 @@ class TrackingParams:
     forget_s: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("tau_s", "forget_s"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v)
-                                           and v > 0):
-                raise ValueError(f"TrackingParams.{name} must be a finite number > 0, "
-                                 f"got {v!r}")
+        require_numbers(self, ("tau_s", "forget_s"), strict=True)
 
 
 @dataclass

@@ -29,6 +29,20 @@ SIDE_RIGHT = -1
 SIDE_FOLLOW = 2
 
 
+def require_numbers(obj: object, names: tuple[str, ...], *, low: float = 0.0,
+                    strict: bool = False) -> None:
+    """Raise ValueError naming ``Class.field`` unless each of ``names`` is a finite
+    number (never a bool) ``>= low`` (``> low`` if ``strict``)."""
+    for name in names:
+        v = getattr(obj, name)
+        ok = (isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+              and (v > low if strict else v >= low))
+        if not ok:
+            op = ">" if strict else ">="
+            raise ValueError(f"{type(obj).__name__}.{name} must be a finite number "
+                             f"{op} {low:g}, got {v!r}")
+
+
 @dataclass(frozen=True)
 class Traffic:
     """Other vehicles at one instant, every array of shape (n,), world frame.
@@ -211,13 +225,8 @@ class ObstaclePolicy:
         "unit": "-", "doc": "moving traffic as obstacles (constant-velocity prediction)"})
 
     def __post_init__(self) -> None:
-        for name in ("detection_distance_m", "rear_range_m", "margin_long_m", "margin_lat_m",
-                     "offset_m"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and not isinstance(value, bool)
-                    and math.isfinite(value) and value >= 0):
-                raise ValueError(
-                    f"ObstaclePolicy.{name} must be a finite number >= 0, got {value!r}")
+        require_numbers(self, ("detection_distance_m", "rear_range_m", "margin_long_m",
+                               "margin_lat_m", "offset_m"))
         if isinstance(self.max_obstacles, bool) or not (
                 isinstance(self.max_obstacles, int) and 0 <= self.max_obstacles <= 16):
             raise ValueError(
