@@ -104,7 +104,12 @@ class SumoWorld:
         self.work_dir.mkdir(parents=True, exist_ok=True)
         routes = self.work_dir / "routes.rou.xml"
         routes.write_text(self._routes.xml())
-        libsumo.start(self._sumo_args(routes))
+        try:
+            libsumo.start(self._sumo_args(routes))
+        except Exception as exc:  # libsumo's TraCIException says only "Process Error"
+            said = self._sumo_errors()
+            raise RuntimeError(f"SUMO did not start: {exc}"
+                               + (f"; SUMO's error log: {said}" if said else "")) from exc
         self._ls, self._tc = libsumo, tc
         libsumo.simulationStep()  # inserts the vehicles departing at t = 0
         sc = self.scenario
@@ -179,7 +184,21 @@ class SumoWorld:
             "--no-step-log", "true", "--no-warnings", "true", "--duration-log.disable", "true",
             "--default.action-step-length", repr(self.rate.world_step_s),
             "--lanechange.duration", "3",
+            "--error-log", str(self.error_log),
         ]
+
+    @property
+    def error_log(self) -> Path:
+        """SUMO's own error messages (its reason when it refuses to start)."""
+        return self.work_dir / "sumo_errors.txt"
+
+    def _sumo_errors(self, max_chars: int = 600) -> str:
+        """The last of SUMO's error messages, on one line."""
+        try:
+            text = self.error_log.read_text(errors="replace").strip()
+        except OSError:
+            return ""
+        return " ".join(text.split())[-max_chars:]
 
     def _time(self) -> float:
         return float(self._ls.simulation.getTime())
