@@ -76,8 +76,9 @@ def main(argv: list[str]) -> int:
         ensure_venv("baselines")
         out = ROOT / "runs" / "demo"
         catalog = ROOT / "catalogs" / "demo.toml"
+        # runs/demo is the demo's own output: a second demo replaces the first.
         code = subprocess.run([str(VENV / "bin" / "hwyeval"), "run", str(catalog),
-                               "--out", str(out), *argv[2:]]).returncode
+                               "--out", str(out), "--overwrite", *argv[2:]]).returncode
         # Exit 1 means the catalog ran and some verdicts are "fail" (the SUMO driver
         # model brakes harder than nuPlan's comfort limits): that is the demo's content.
         # Only invalid input (2) or a crash of the tool itself fails the demo command.
