@@ -44,7 +44,11 @@ import numpy.typing as npt
 
 from controllers.behaviour.ellipses import ellipse_semi_axes, offset_centre_y
 from controllers.behaviour.following import FollowParams, follow_speed_mps
-from controllers.behaviour.lane_change import LaneChangeParams, lane_change_safety
+from controllers.behaviour.lane_change import (
+    LaneChangeParams,
+    decel_needed_mps2,
+    lane_change_safety,
+)
 from controllers.behaviour.perception import (
     LaneScene,
     Neighbour,
@@ -229,10 +233,10 @@ class LaneBehaviour:
         lead = sc.lead(plan.origin)
         if lead is None:
             return False
-        stop = _decel_to_stop_mps2(sc.ego.speed_mps, lead.gap_m - 1.0)
+        stop = decel_needed_mps2(sc.ego.speed_mps, lead.gap_m, 1.0)
         rear = sc.follower(plan.lane)
-        follower = 0.0 if rear is None else _decel_to_stop_mps2(
-            max(rear.speed_mps - sc.ego.speed_mps, 0.0), rear.gap_m - 1.0)
+        follower = 0.0 if rear is None else decel_needed_mps2(
+            rear.speed_mps - sc.ego.speed_mps, rear.gap_m, 1.0)
         return stop > follower
 
     def _lane_speed(self, sc: LaneScene, rel: int, set_speed: float
@@ -405,13 +409,6 @@ class LaneBehaviour:
         return Obstacles(s_m=fn.s_m[order].copy(), y_m=y, speed_s_mps=fn.v_s_mps[order].copy(),
                          speed_y_mps=fn.v_y_mps[order].copy(), semi_a_m=semi_a,
                          semi_b_m=semi_b)
-
-
-def _decel_to_stop_mps2(closing_mps: float, room_m: float) -> float:
-    """Constant deceleration [m/s²] that removes ``closing_mps`` within ``room_m``."""
-    if closing_mps <= 0.0:
-        return 0.0
-    return math.inf if room_m <= 0.0 else closing_mps**2 / (2.0 * room_m)
 
 
 def _leave_ego_outside(ds_m: float, dy_m: float, semi_a_m: float, semi_b_m: float,

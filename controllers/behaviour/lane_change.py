@@ -85,7 +85,7 @@ class LaneChangeParams:
             raise ValueError("LaneChangeParams.evasive_decel_mps2 must be >= abort_decel_mps2")
 
 
-def _decel_needed(closing_mps: float, gap_m: float, standstill_m: float) -> float:
+def decel_needed_mps2(closing_mps: float, gap_m: float, standstill_m: float) -> float:
     """Constant deceleration [m/s²] that removes ``closing_mps`` within the gap beyond s0."""
     if closing_mps <= 0.0:
         return 0.0
@@ -133,7 +133,7 @@ def lane_change_safety(scene: LaneScene, target: int, end_s_m: float, p: LaneCha
 def _front_problem(lead: Neighbour, v: float, p: LaneChangeParams, bound: float) -> str:
     if lead.gap_m < p.standstill_m + p.front_time_gap_s * v:
         return f"{lead.gap_m:.0f} m to the car ahead"
-    if _decel_needed(v - lead.speed_mps, lead.gap_m, p.standstill_m) > bound:
+    if decel_needed_mps2(v - lead.speed_mps, lead.gap_m, p.standstill_m) > bound:
         return "closing on the car ahead"
     return ""
 
@@ -141,7 +141,7 @@ def _front_problem(lead: Neighbour, v: float, p: LaneChangeParams, bound: float)
 def _rear_problem(rear: Neighbour, v: float, p: LaneChangeParams, bound: float) -> str:
     if rear.gap_m < p.standstill_m + p.rear_time_gap_s * max(rear.speed_mps, 0.0):
         return f"{rear.gap_m:.0f} m to the car behind"
-    if _decel_needed(rear.speed_mps - v, rear.gap_m, p.standstill_m) > bound:
+    if decel_needed_mps2(rear.speed_mps - v, rear.gap_m, p.standstill_m) > bound:
         return "a faster car closing from behind"
     return ""
 

@@ -90,10 +90,7 @@ def _comfort_ok(rec: RunRecord) -> bool | None:
 
 
 def _value(rec: RunRecord, name: str) -> float:
-    if rec.verdict is None:
-        return math.nan
-    m = rec.verdict.metric(name)
-    return float(m.value) if m is not None else math.nan
+    return rec.verdict.value(name) if rec.verdict is not None else math.nan
 
 
 def _count(table: dict[str, ShareCount], key: str, ok: bool) -> None:

@@ -20,14 +20,7 @@ the iteration count, no data-dependent loop length. Afterwards:
 Initialisation: growing horizon T(t) = T_f (1 - exp(-rate (t - t_init))); at
 t_init the horizon is zero and :func:`controllers.two_loop.outer.ocp.stage_init` is exact,
 so E(t_init) is at round-off level. The horizon's growth enters the continuation
-through the F_t forward difference, like the obstacles' motion. With
-``init_pseudo_time_s`` > 0 the growth runs at once, in frozen pseudo-time: the same
-continuation updates with the state, the lateral reference and the obstacles held where
-they are now (the obstacles' time shift cancels the pseudo-time), for that long, so the
-first plan already has (nearly) the full horizon. Grown in real time instead, a car
-starting at speed sees an obstacle 40 m ahead only when the horizon reaches it, about
-0.4 s in, at once and at full weight: E jumps to 12-18 and the command jerks
-(docs/two_loop.md, "Evasive changes and the planner's start"; off by default).
+through the F_t forward difference, like the obstacles' motion.
 
 Obstacle slots: the K slots keep their obstacle between updates (matched by the
 constant-velocity prediction of the previous centre), so the unknowns Z_j, mu_j
@@ -356,34 +349,7 @@ class CgmresOuter:
         prm = self._pack(self._vt, self._yr, lateral_weight=self._cy)
         stage_init(x0, 0.0, prm, self._obs, self.meta, self.coef, self.params.n_stages, self._u)
         self._udot[:] = 0.0
-        self._grow_in_pseudo_time(t_s, x0, prm)
         self._initialised = True
-
-    def _grow_in_pseudo_time(self, t_s: float, x0: np.ndarray, prm: np.ndarray) -> None:
-        """Grow the horizon for ``init_pseudo_time_s`` at frozen (t_s, x0) (module
-        docstring); afterwards T(t_s) is the horizon reached and real time continues the
-        growth from there. Falls back to the real-time start if anything goes
-        non-finite."""
-        p = self.params
-        tau = p.init_pseudo_time_s
-        if tau <= 0.0:
-            return
-        dtau = 1.0 / (p.zeta_s * 3.0)  # zeta dtau = 1/3, the sub-updates' usual ratio
-        n = max(int(math.ceil(tau / dtau)), 1)
-        dtau = tau / n
-        u0 = self._u.copy()
-        hz = np.array([0.0, p.horizon_s, p.horizon_growth_rate])
-        for k in range(n):
-            # Pseudo-time k dtau since the (zero-length) start; tshift_b = dtau keeps the
-            # obstacles at their current time stamp.
-            cgmres_updates(self._u, self._udot, x0, x0, k * dtau, dtau, 1, hz, dtau, prm,
-                           self._obs, self.w, self.meta, self.coef, self._cfg, self._work,
-                           self._xs, self._stats)
-            if self._stats[2] > 0.5:
-                self._u[:] = u0
-                self._udot[:] = 0.0
-                return
-        self._hz[0] = t_s - tau
 
     # ------------------------------------------------------------ obstacle slots
     def _match_obstacles(self, t_s: float, obstacles: Obstacles, horizon: float,

@@ -91,9 +91,6 @@ class CgmresParams(OcpParams):
     sub_updates: int = param(3, "-", "continuation updates per control period")
     horizon_growth_rate: float = param(2.0, "1/s",
                                        "growing horizon T (1 - exp(-rate (t - t_init)))")
-    init_pseudo_time_s: float = param(
-        0.0, "s", "the horizon grown at initialisation in this much frozen pseudo-time "
-        "(0: grown in real time, the paper's start)")
     z_guard: float = param(0.05, "-", "guard: Z + zeta kept >= z_guard after each update")
     row_scaling: bool = param(True, "-", "GMRES on D(U) F (diagonal row scaling)")
     obstacle_fade_s: float = param(0.5, "s", "barrier weight fade of an obstacle in and out")
@@ -108,7 +105,6 @@ class CgmresParams(OcpParams):
             check_range(self, name, gt=0.0)
         check_range(self, "fd_step", gt=0.0, lt=1e-2)
         check_range(self, "fallback_hold_s", ge=0.0)
-        check_range(self, "init_pseudo_time_s", ge=0.0, le=30.0)
         check_range(self, "k_max", ge=1, le=200)
         check_range(self, "sub_updates", ge=1, le=100)
         if self.z_guard >= self.zeta:
