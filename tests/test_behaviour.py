@@ -173,6 +173,34 @@ def test_minimal_risk_braking_known_answers() -> None:
     assert needed_decel_mps2(x0, 20.0, Obstacles.empty()) == 0.0
 
 
+def test_inside_an_ellipse_the_braking_need_uses_the_bumper_gap() -> None:
+    """A car merging in with its rear 4 m ahead of the ego's front, 1 m/s slower: the
+    ego's CG is inside its ellipse (inf without the policy); with it, the need is
+    1² / (2 (4 - 1)) m/s² (standstill 1 m), and a closing stopped car 0.5 m ahead is inf.
+    Far ahead the ellipse's distance is kept when it is the larger (never here: the
+    bumper gap less 1 m exceeds the distance to the ellipse by A - a - 1)."""
+    from controllers.behaviour.ellipses import box_half_length_m, ellipse_semi_axes
+    from controllers.behaviour.types import ObstaclePolicy, Obstacles
+    from controllers.two_loop.fallback import needed_decel_mps2
+    policy = ObstaclePolicy(margin_long_m=2.0, margin_lat_m=0.4, offset_m=0.3)
+    sa, sb = ellipse_semi_axes(4.6, 1.8, 4.6, 1.8, policy)
+    assert box_half_length_m(np.array([sa]), np.array([sb]), policy) == pytest.approx([4.6])
+    x0 = np.array([100.0, 0.0, 0.0])
+    merge = Obstacles(s_m=np.array([100.0 + 4.6 + 4.0]), y_m=np.zeros(1),
+                      speed_s_mps=np.array([21.0]), speed_y_mps=np.zeros(1),
+                      semi_a_m=np.array([sa]), semi_b_m=np.array([sb]))
+    assert needed_decel_mps2(x0, 22.0, merge) == math.inf
+    assert needed_decel_mps2(x0, 22.0, merge, policy, 1.0) == pytest.approx(1.0 / 6.0)
+    stopped = Obstacles(s_m=np.array([100.0 + 4.6 + 0.5]), y_m=np.zeros(1),
+                        speed_s_mps=np.zeros(1), speed_y_mps=np.zeros(1),
+                        semi_a_m=np.array([sa]), semi_b_m=np.array([sb]))
+    assert needed_decel_mps2(x0, 5.0, stopped, policy, 1.0) == math.inf
+    far = Obstacles(s_m=np.array([160.0]), y_m=np.zeros(1), speed_s_mps=np.zeros(1),
+                    speed_y_mps=np.zeros(1), semi_a_m=np.array([sa]), semi_b_m=np.array([sb]))
+    assert needed_decel_mps2(x0, 20.0, far, policy, 1.0) == pytest.approx(
+        400.0 / (2.0 * (60.0 - 4.6 - 1.0)))
+
+
 def test_a_slower_car_in_the_passing_lane_is_followed_not_passed(path: FrenetPath) -> None:
     # The ego's lane has a car at 20 m/s; so has the left lane (and the right lane is a
     # shoulder): nothing is gained by changing: follow, no lane change.

@@ -406,6 +406,7 @@ def test_parameters_round_trip_through_the_factory() -> None:
     params = ctl.parameters()
     assert params["outer"]["c_y"] == 2.0 and isinstance(params["outer"]["c_y"], float)
     assert params["inner"]["preview"] is False and params["launch"]["blend_s"] == 1.0
-    assert set(params) == {"name", "outer", "inner", "lateral", "launch", "policy", "fallback"}
+    assert set(params) == {"name", "outer", "inner", "lateral", "launch", "policy", "fallback",
+                           "jerk"}
     again = make_two_loop(json.loads(json.dumps(params)))
     assert again.params == ctl.params and again.parameters() == params

@@ -62,6 +62,20 @@ def ellipse_semi_axes(obstacle_length_m: float, obstacle_width_m: float, ego_len
     return float(a0 + policy.margin_long_m), float(b0 + policy.offset_m)
 
 
+def box_half_length_m(semi_a_m: np.ndarray, semi_b_m: np.ndarray,
+                      policy: ObstaclePolicy) -> np.ndarray:
+    """The box-sum half length a [m] (half the obstacle's plus half the ego's length)
+    inside ellipses of semi-axes (A, B) built by :func:`ellipse_semi_axes` with
+    ``policy``: the inverse of its A = a / sqrt(1 - (b/b0)²) + margin_long, with
+    b0 = B - offset and b = b0 - max(margin_lat, 0.05). Shapes as the inputs."""
+    b0 = np.asarray(semi_b_m, dtype=np.float64) - policy.offset_m
+    b = b0 - max(policy.margin_lat_m, 0.05)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.clip(np.where(b0 > 0.0, b / b0, 0.0), 0.0, 1.0)
+    return (np.asarray(semi_a_m, dtype=np.float64) - policy.margin_long_m) * np.sqrt(
+        1.0 - ratio ** 2)
+
+
 def offset_centre_y(y_m: float, pass_side: int, policy: ObstaclePolicy) -> float:
     """Centre y shifted by offset_m away from the pass side (no shift if pass_side = 0)."""
     return float(y_m) - float(np.sign(pass_side)) * policy.offset_m

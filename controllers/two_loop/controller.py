@@ -13,7 +13,10 @@ Per control period (:meth:`TwoLoopController.step`):
    target speed, yr and Cy;
 5. inner preview tracker (:mod:`controllers.two_loop.tracker`): conversion (13)(14),
    preview and corrections (38)-(41);
-6. minimal-risk manoeuvre (:mod:`controllers.two_loop.fallback`): when the planner
+6. longitudinal jerk limiter (:mod:`controllers.two_loop.jerk`): the torque's rate is
+   bounded (during the manoeuvre below at least at that manoeuvre's own jerk bound;
+   bypassed during the launch);
+7. minimal-risk manoeuvre (:mod:`controllers.two_loop.fallback`): when the planner
    fails (or a command is non-finite), a committed, jerk-limited braking plan in the
    lane replaces the planner's for at least its hold time; the planner then restarts at
    the measured state. A non-finite command (never expected) is replaced by lane-keeping
@@ -38,7 +41,8 @@ from controllers.params import to_dict
 from controllers.path.frenet import FrenetPath, _points_many, path_gamma, path_project_local
 from controllers.protocol import Command, Observation, Obstacles, ScenarioContext, StepDiagnostics
 from controllers.two_loop.diagnostics import TwoLoopDiagnostics
-from controllers.two_loop.fallback import MinimalRiskManeuver
+from controllers.two_loop.fallback import MinimalRiskManeuver, onset_jerk_mps3
+from controllers.two_loop.jerk import JerkLimiter
 from controllers.two_loop.lateral import LateralReferenceShaper
 from controllers.two_loop.launch import LaunchSupervisor
 from controllers.two_loop.outer.protocol import OuterPlan, OuterPlanner, PlannerFactory
@@ -49,6 +53,8 @@ from controllers.two_loop.params import (
     two_loop_params,
 )
 from controllers.two_loop.tracker import PreviewTracker, TrackerOutput
+
+_URGENT_WINDOW_S = 0.5  # the plan's deceleration over this much of its horizon [s]
 
 __all__ = ["TwoLoopController", "TwoLoopDiagnostics", "cgmres_planner", "ipopt_planner",
            "make_two_loop"]
@@ -111,7 +117,8 @@ class TwoLoopController:
         self.lateral = LateralReferenceShaper(p.lateral)
         self.launch = LaunchSupervisor(p.launch, p.outer, p.policy)
         self.tracker = PreviewTracker(p.inner)
-        self.mrm = MinimalRiskManeuver(p.fallback, p.outer.target_accel_mps2)
+        self.mrm = MinimalRiskManeuver(p.fallback, p.outer.target_accel_mps2, p.policy)
+        self.jerk = JerkLimiter(p.jerk)
         self.path: FrenetPath | None = None
         self.planner: OuterPlanner | None = None
         self.plan: OuterPlan | None = None
@@ -144,6 +151,7 @@ class TwoLoopController:
         self.plan = None
         self.lateral.reset()
         self.mrm.reset()
+        self.jerk.reset()
         self._last_torque = 0.0
         self.launch.reset(self.path, context.vehicle)
         self.tracker.reset(self.path, context.vehicle, p.outer.n_stages, st)
@@ -223,6 +231,15 @@ class TwoLoopController:
             out = TrackerOutput(steer, torque, out.preview_err_t_m, out.preview_err_n_m, 0.0, 0.0)
             if not self.mrm.active:
                 self.mrm.engage(t_s, speed, -self.params.outer.fallback_decel_mps2)
+        m_r = self._vp[0] * self._vp[6]
+        if self.launch.active or lw > 0.0:
+            torque = self.jerk.follow(torque)  # the launch law owns the command
+        elif self.mrm.active:  # the manoeuvre's own jerk bound (emergency: higher)
+            torque = self.jerk.limit(torque, dt, m_r, self.mrm.ramp.jerk_mps3)
+        else:
+            urgent = self._braking_jerk_mps3(speed, plan) if \
+                self.jerk.brakes_harder_than_bound(torque, dt, m_r) else 0.0
+            torque = self.jerk.limit(torque, dt, m_r, urgent)
         self._last_torque = float(torque)
         self.launch.observe_torque(torque)
         t_end = time.perf_counter()
@@ -266,6 +283,22 @@ class TwoLoopController:
         steer, torque = launch.command(st, x0, speed, target, self.lateral.raw_m,
                                        observation.obstacles, int(observation.pass_side), dt)
         return steer, torque, lw
+
+    def _braking_jerk_mps3(self, speed_mps: float, plan: OuterPlan) -> float:
+        """The braking onset's jerk bound [m/s³] that the plan's own urgency calls for:
+        the deceleration from the measured speed to the plan's speed ``_URGENT_WINDOW_S``
+        ahead (the plan's V is an input: a plan far below the car's speed wants it slower
+        now), through the manoeuvre's :func:`onset_jerk_mps3` (the comfortable bound
+        unless that exceeds ``fallback.comfort_decel_mps2``). Not the obstacles' need:
+        while the ego evades a stopped car it could not stop for, braking for it is not
+        the plan."""
+        tau = np.asarray(plan.stage_times_s, dtype=np.float64)
+        v = np.asarray(plan.speeds_mps, dtype=np.float64)
+        if v.size == 0:
+            return 0.0
+        k = min(int(np.searchsorted(tau, _URGENT_WINDOW_S)), v.size - 1)
+        window = max(float(tau[k]), _URGENT_WINDOW_S)
+        return onset_jerk_mps3(self.params.fallback, (speed_mps - float(v[k])) / window)
 
     def _mrm_plan(self, x0: np.ndarray, y_ref: float, target: float, dt: float,
                   obstacles: Obstacles) -> OuterPlan:

@@ -10,9 +10,13 @@ and follows this manoeuvre instead, committed for at least ``hold_s``:
   engagement: it brakes smoothly, it never speeds up. Unless that is too little: with
   an obstacle ellipse ahead covering the ego's lateral position (the followed lead's
   wall, a stopped car), at distance d from the ego's CG to the ellipse and closing at
-  dv, the braking needed is b = dv² / (2 d); while 1.2 b exceeds ``decel_mps2`` the ramp
-  brakes at up to ``emergency_decel_mps2`` with jerk ``emergency_jerk_mps3``
-  (a collision is worse than a hard stop);
+  dv, the braking needed is b = dv² / (2 d) (d at least the bumper gap less
+  ``standstill_m``: :func:`needed_decel_mps2`); while 1.2 b exceeds ``decel_mps2`` the ramp
+  brakes at up to 1.2 b, capped at ``emergency_decel_mps2``; its jerk bound grows with
+  the need (:func:`onset_jerk_mps3`): ``jerk_mps3`` while 1.2 b is within
+  ``comfort_decel_mps2``, linearly up to ``emergency_jerk_mps3`` at
+  ``emergency_decel_mps2`` (a collision is worse than a hard stop, but a moderate need
+  does not justify an emergency-rate brake onset);
 * path: along the reference at the shaped lateral reference (the lane the behaviour
   holds), so the preview tracker keeps the car in its lane.
 
@@ -30,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controllers.behaviour.ellipses import box_half_length_m
+from controllers.behaviour.types import ObstaclePolicy
 from controllers.params import check_leaves, check_range, param
 from controllers.path.frenet import FrenetPath
 from controllers.protocol import Obstacles
@@ -49,11 +55,15 @@ class FallbackParams:
     emergency_decel_mps2: float = param(8.0, "m/s²",
                                         "hardest braking when an obstacle ahead needs it")
     emergency_jerk_mps3: float = param(15.0, "m/s³", "jerk bound of that braking")
+    comfort_decel_mps2: float = param(3.5, "m/s²", "needed braking up to which the onset "
+                                      "keeps jerk_mps3")
+    standstill_m: float = param(1.0, "m", "bumper gap kept when the CG is inside an ellipse")
 
     def __post_init__(self) -> None:
         check_leaves(self)
         for name in ("decel_mps2", "jerk_mps3", "hold_s", "max_hold_s", "rearm_s",
-                     "emergency_decel_mps2", "emergency_jerk_mps3"):
+                     "emergency_decel_mps2", "emergency_jerk_mps3", "comfort_decel_mps2",
+                     "standstill_m"):
             check_range(self, name, gt=0.0)
         check_range(self, "max_hold_s", ge=self.hold_s)
         check_range(self, "emergency_decel_mps2", ge=self.decel_mps2)
@@ -65,8 +75,10 @@ class MinimalRiskManeuver:
     follows; :meth:`due` says when the planner may take over again (then
     :meth:`release`)."""
 
-    def __init__(self, params: FallbackParams, accel_mps2: float) -> None:
+    def __init__(self, params: FallbackParams, accel_mps2: float,
+                 policy: ObstaclePolicy | None = None) -> None:
         self.params = params
+        self.policy = policy
         self.ramp = TargetSpeedRamp(accel_mps2, params.decel_mps2, params.jerk_mps3)
         self.active = False
         self.count = 0
@@ -107,10 +119,11 @@ class MinimalRiskManeuver:
         """Ramp limits for this step: the usual ones, or harder if an obstacle ahead needs
         it (module docstring)."""
         p = self.params
-        need = needed_decel_mps2(x0, self.ramp.speed_mps, obstacles)
+        need = needed_decel_mps2(x0, self.ramp.speed_mps, obstacles, self.policy,
+                                 p.standstill_m)
         if 1.2 * need > p.decel_mps2:
             self.ramp.decel_mps2 = min(1.2 * need, p.emergency_decel_mps2)
-            self.ramp.jerk_mps3 = p.emergency_jerk_mps3
+            self.ramp.jerk_mps3 = onset_jerk_mps3(p, 1.2 * need)
         else:
             self.ramp.decel_mps2 = p.decel_mps2
             self.ramp.jerk_mps3 = p.jerk_mps3
@@ -141,11 +154,33 @@ class MinimalRiskManeuver:
                          fallback=True, guard_fired=0, solve_s=0.0)
 
 
-def needed_decel_mps2(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | None) -> float:
+def onset_jerk_mps3(p: FallbackParams, decel_mps2: float) -> float:
+    """Jerk bound [m/s³] of a braking onset toward ``decel_mps2``: ``jerk_mps3`` up to
+    ``comfort_decel_mps2``, then linear in the deceleration up to ``emergency_jerk_mps3``
+    at ``emergency_decel_mps2`` (and beyond)."""
+    span = p.emergency_decel_mps2 - p.comfort_decel_mps2
+    if decel_mps2 <= p.comfort_decel_mps2:
+        return p.jerk_mps3
+    if span <= 0.0:
+        return p.emergency_jerk_mps3
+    w = min((decel_mps2 - p.comfort_decel_mps2) / span, 1.0)
+    return p.jerk_mps3 + w * (p.emergency_jerk_mps3 - p.jerk_mps3)
+
+
+def needed_decel_mps2(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | None,
+                      policy: ObstaclePolicy | None = None, standstill_m: float = 1.0) -> float:
     """Braking [m/s²] that keeps the ego's CG (Frenet x0 = (s, y, ...), speed v) out of
     the nearest ellipse ahead covering its lateral offset: b = (v - v_j)² / (2 d_j), d_j
     = s_j - A_j - s the distance to the ellipse's rear point along s, v_j the ellipse's
-    speed along s; inf when the CG is already at or past that point (0 if nothing)."""
+    speed along s (0 if nothing is ahead or nothing closes).
+
+    Without ``policy``, inf once the CG is at or past that point (d_j <= 0) and closing.
+    With the ``policy`` the ellipses were built with, d_j is at least the bumper gap
+    along s less ``standstill_m``, s_j - a_j - s - standstill_m (a_j the box-sum half
+    length, :func:`controllers.behaviour.ellipses.box_half_length_m`), inf only when
+    that is <= 0: the ellipse's margins are the planner's, not the car's; a car merging
+    in 5 m ahead at nearly the ego's speed needs little braking, not an emergency stop
+    (with the ellipse's distance, near zero there, it needed 8 m/s²)."""
     if obstacles is None or obstacles.count == 0:
         return 0.0
     s, y = float(x0[0]), float(x0[1])
@@ -154,6 +189,10 @@ def needed_decel_mps2(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | N
     if not np.any(ahead):
         return 0.0
     d = ds[ahead] - obstacles.semi_a_m[ahead]
+    if policy is not None:
+        gap = ds[ahead] - box_half_length_m(obstacles.semi_a_m[ahead],
+                                            obstacles.semi_b_m[ahead], policy) - standstill_m
+        d = np.maximum(d, gap)
     closing = np.maximum(speed_mps - obstacles.speed_s_mps[ahead], 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         b = np.where(d > 0.0, closing**2 / (2.0 * np.maximum(d, 1e-9)),

@@ -9,7 +9,8 @@ step in a parameter is a step in its residual; every control period the shaper m
    length (V the measured speed: a slow car cannot follow the rate with a sensible
    heading; a growing C/GMRES horizon is short at first); while the behaviour marks the
    move evasive (a stopped car ahead the ego cannot stop for comfortably) the
-   ``evasive_*`` limits apply instead;
+   ``evasive_*`` limits apply instead, not scaled by the horizon: an evasion cannot wait
+   for the horizon to grow (a car starting 40-90 m behind a stopped one has 1.5-4 s);
 2. a critically damped second-order filter (time constant T_f = ``filter_s``):
    yr'' = (r - yr)/T_f² - 2 yr'/T_f, integrated by semi-implicit Euler in sub-steps
    h <= T_f/10 (T_f = 0: yr = r, yr' = dr/dt).
@@ -44,7 +45,7 @@ class LateralRefParams:
     heading_rad: float = param(0.1, "rad", "the rate limit is at most V times this")
     c_y_engaged: float = param(20.0, "1/(m² s)", "Cy while a lateral reference is engaged")
     weight_time_s: float = param(1.0, "s", "blend time of Cy from/to the OCP's c_y")
-    evasive_rate_mps: float = param(4.0, "m/s", "rate limit while the move is evasive")
+    evasive_rate_mps: float = param(2.5, "m/s", "rate limit while the move is evasive")
     evasive_heading_rad: float = param(0.25, "rad", "heading bound of that rate (V times this)")
 
     def __post_init__(self) -> None:
@@ -145,7 +146,7 @@ class LateralReferenceShaper:
             rate = min(p.evasive_rate_mps, v * p.evasive_heading_rad)
         else:
             rate = min(p.rate_mps, v * p.heading_rad)
-        rate *= rate_scale
+        rate *= 1.0 if self._evasive else rate_scale
         max_step = rate * h
         r, yr, yd = self._ramp, self._yr, self._yr_rate
         for _ in range(n_sub):

@@ -1,7 +1,8 @@
 """The two-loop controller's parameters: one section per stage, and the catalog aliases.
 
 ``TwoLoopParams(outer=CgmresParams, inner=PreviewParams, lateral=LateralRefParams,
-launch=LaunchParams, policy=ObstaclePolicy, fallback=FallbackParams)`` is ``two_loop``;
+launch=LaunchParams, policy=ObstaclePolicy, fallback=FallbackParams,
+jerk=JerkLimitParams)`` is ``two_loop``;
 :class:`IpoptNmpcParams` is the same with ``outer=IpoptParams`` (``ipopt_nmpc``). A
 catalog sets them with nested tables (``controller.outer.c_y``) through
 :func:`controllers.params.build`; the flat names of the former flat parameter class
@@ -18,6 +19,7 @@ from controllers.behaviour.types import ObstaclePolicy
 from controllers.params import ParamError, build, section
 from controllers.protocol import ConfigError
 from controllers.two_loop.fallback import FallbackParams
+from controllers.two_loop.jerk import JerkLimitParams
 from controllers.two_loop.lateral import LateralRefParams
 from controllers.two_loop.launch import LaunchParams
 from controllers.two_loop.outer.params import CgmresParams, IpoptParams, OcpParams
@@ -37,6 +39,8 @@ class TwoLoopParamsBase:
                                      "max_obstacles)")
     fallback: FallbackParams = section(FallbackParams, "minimal-risk manoeuvre when the "
                                        "planner fails")
+    jerk: JerkLimitParams = section(JerkLimitParams, "rate limit of the longitudinal "
+                                    "command (the last stage)")
 
     def __post_init__(self) -> None:
         horizon = self.outer.horizon_s
