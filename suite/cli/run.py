@@ -34,7 +34,6 @@ from suite.cli.common import (
     load_catalog_for,
     load_plugins,
 )
-from suite.cli.progress import RunProgress, short_summary
 
 WARMUP_NOTE = ("starting {n} worker(s): importing modules and loading numba kernels "
                "(they compile once after an install or a change, about 20 s)")
@@ -131,8 +130,38 @@ def _write_reports(out: Path) -> Any:
         return None
 
 
+class _EarlyWarmUp:
+    """The workers' forkserver, started before the catalog is read (its preload of
+    imports and numba kernels overlaps this process's catalog validation and output
+    preparation); stopped again if the command hands no job to the executor."""
+
+    def __init__(self, executor: str) -> None:
+        from suite.exec.forkserver import prestart_forkserver
+
+        self.running = executor == "local" and prestart_forkserver()
+        self.used = False
+
+    def close(self) -> None:
+        if self.running and not self.used:
+            from suite.exec.forkserver import stop_forkserver
+
+            stop_forkserver()
+
+
 def cmd_run(args: argparse.Namespace) -> int:
+    out_text = Output()
+    warm = _EarlyWarmUp(args.executor)
+    plugins = load_plugins(args.plugin)
+    try:
+        return _run(args, out_text, plugins, warm)
+    finally:
+        warm.close()
+
+
+def _run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
+         warm: _EarlyWarmUp) -> int:
     from reports.manifest import write_manifest
+    from suite.cli.progress import RunProgress, short_summary
     from suite.exec.outdir import (
         OutputDirError,
         ResumePlan,
@@ -142,8 +171,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     )
     from suite.exec.signals import stop_on_signals
 
-    out_text = Output()
-    plugins = load_plugins(args.plugin)
     _, scenarios = load_catalog_for(args.catalog, args.filter)
     out = Path(args.out)
     try:
@@ -168,6 +195,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         if args.executor == "local" and todo.to_run:
             out_text.line(WARMUP_NOTE.format(n=min(workers, len(todo.to_run))))
         t0 = time.perf_counter()
+        warm.used = bool(todo.to_run)
         with RunProgress(out_text, len(todo.to_run), workers, sys.stdout.isatty()) as progress:
             results = executor.run(list(todo.to_run), progress.finished, stop)
         records = [*todo.kept, *results]

@@ -4,7 +4,10 @@ One scenario per process (libsumo hosts one simulation per process), started by 
 ``forkserver`` with the heavy modules preloaded (:data:`PRELOAD`), so a catalog pays
 imports and numba cache loading once. The forkserver is started (and its preload
 awaited) before the first scenario, in a thread, so that the parent stays responsive
-to signals and no scenario's budget is spent on the warm-up.
+to signals and no scenario's budget is spent on the warm-up;
+:func:`suite.exec.forkserver.prestart_forkserver` starts it earlier still, while the
+parent validates the catalog and prepares the output (the preload runs in its own
+process, the command's fixed costs overlap).
 
 For each job: an older run directory of it is removed before it starts (what is
 found there afterwards is this run's), a process over its wall-clock budget is
@@ -20,7 +23,6 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import multiprocessing.connection
-import os
 import signal
 import threading
 import time
@@ -32,14 +34,18 @@ from typing import Any
 
 from reports.record import RecordError, RunRecord
 from reports.record.run import discard_staging, remove_path
+from suite.exec.forkserver import (
+    PRELOAD,
+    start_and_wait,
+    stop_forkserver,
+    warm_up_thread,
+)
 from suite.exec.jobs import OnDone, RunJob, read_result, record_in_memory, run_job, write_failure
 from suite.exec.signals import POLL_S, StopRequest
 from suite.exec.worker import become_worker, signal_worker, terminate_workers
 
 __all__ = ["KILL_GRACE_S", "PRELOAD", "LocalExecutor", "stop_forkserver"]
 
-PRELOAD = ["numpy", "pandas", "numba", "libsumo", "suite.run.runner", "suite.catalog",
-           "controllers.builtin", "suite.exec.warmup"]
 KILL_GRACE_S = 10.0  # a process still alive this long after its budget is killed [s]
 
 
@@ -50,29 +56,6 @@ def _worker_main(job: RunJob) -> None:
     except Exception:
         write_failure(job, "error", traceback.format_exc())
         raise
-
-
-def _noop() -> None:
-    """The warm-up process: its start makes the forkserver preload."""
-
-
-def stop_forkserver() -> None:
-    """Kill this process's forkserver, if it has one (it may be in the middle of its
-    preload, which would otherwise outlive us by as long as numba takes)."""
-    from multiprocessing import forkserver
-
-    server: Any = getattr(forkserver, "_forkserver", None)
-    pid = getattr(server, "_forkserver_pid", None)
-    if server is None or pid is None:
-        return
-    try:
-        os.kill(pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    try:
-        server._stop()  # closes its pipe, reaps it; a later run starts a new one
-    except (OSError, ChildProcessError):
-        pass
 
 
 @dataclass
@@ -134,16 +117,11 @@ class LocalExecutor:
     def _warm_up(self, stop: StopRequest) -> bool:
         """Start the forkserver and wait for its preload in a thread, polling ``stop``;
         False when stopped meanwhile."""
-        def start() -> None:
-            try:
-                proc = self.ctx.Process(target=_noop, name="hwyeval-warm-up")
-                proc.start()
-                proc.join()
-            except Exception:  # noqa: BLE001 - the first scenario will fail and say why
-                pass
-
-        thread = threading.Thread(target=start, name="hwyeval-warm-up", daemon=True)
-        thread.start()
+        thread = warm_up_thread(self.start_method)
+        if thread is None:
+            thread = threading.Thread(target=start_and_wait, args=(self.ctx,),
+                                      name="hwyeval-warm-up", daemon=True)
+            thread.start()
         while thread.is_alive():
             if stop.requested:
                 return False

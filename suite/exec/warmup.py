@@ -2,20 +2,61 @@
 
 Importing this module loads every compiled kernel from numba's on-disk cache (or
 compiles it once) by running the two-loop controller for a few steps on a tiny
-problem, and imports the heavy modules a run needs (Rerun, scipy via the
-metrics), so that each forked scenario process inherits them instead of paying
-for them again: a catalog pays compilation and imports once.
+problem, and imports the heavy modules a run needs (Rerun, ``scipy.signal`` that the
+comfort metrics import lazily so that the CLI starts fast, ``pyarrow.parquet``, the XML
+parser of the network reader, the bundled networks), so that each forked scenario
+process inherits them instead of paying for them again: a catalog pays compilation and
+imports once. Missing one costs every run its import (``scipy.signal`` and its
+dependencies alone were 0.35 s of each 40 s run; docs/performance.md).
+
+In the forkserver itself (not when imported anywhere else) it also makes the server's
+exit quick: the forkserver ends by ``SystemExit`` once its parent is gone, and the
+interpreter's teardown of everything preloaded then took 0.55 s, during which it still
+held the command's stdout and stderr (a pipe reading ``hwyeval run`` saw its end that
+much later). An atexit handler runs the other handlers, flushes and calls ``os._exit``.
 """
 
 from __future__ import annotations
 
-import numpy as np
+import atexit
+import os
+import sys
+import xml.sax.expatreader  # noqa: F401 - the network reader's parser
+from types import FrameType
 
-import reports.metrics  # noqa: F401 - scipy.signal and friends
+import numpy as np
+import pyarrow.parquet  # noqa: F401 - the run's files
+import scipy.signal  # noqa: F401 - imported lazily by the comfort metrics (not by the CLI)
+
+import reports.metrics  # noqa: F401
 import suite.rerun.log  # noqa: F401 - rerun
+import sumo_nets  # noqa: F401 - the bundled networks
 from controllers import registry
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
 from controllers.protocol import Observation, Obstacles, ScenarioContext, SumoDriverModel
+
+
+def in_forkserver() -> bool:
+    """Whether this import runs in multiprocessing's forkserver preload (its ``main`` is
+    on the call stack)."""
+    frame: FrameType | None = sys._getframe()
+    target = os.path.join("multiprocessing", "forkserver.py")
+    while frame is not None:
+        if frame.f_code.co_name == "main" and frame.f_code.co_filename.endswith(target):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _exit_without_teardown() -> None:
+    atexit.unregister(_exit_without_teardown)
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(0)
 
 
 def warm_up(steps: int = 3) -> None:
@@ -40,3 +81,6 @@ try:
     warm_up()
 except Exception:  # noqa: BLE001 - a failed warm-up must not take the forkserver down;
     pass  # the scenario itself will then raise and be reported with its traceback.
+
+if in_forkserver():
+    atexit.register(_exit_without_teardown)
