@@ -177,8 +177,8 @@ def test_inside_an_ellipse_the_braking_need_uses_the_bumper_gap() -> None:
     """A car merging in with its rear 4 m ahead of the ego's front, 1 m/s slower: the
     ego's CG is inside its ellipse (inf without the policy); with it, the need is
     1² / (2 (4 - 1)) m/s² (standstill 1 m), and a closing stopped car 0.5 m ahead is inf.
-    Far ahead the ellipse's distance is kept when it is the larger (never here: the
-    bumper gap less 1 m exceeds the distance to the ellipse by A - a - 1)."""
+    Far ahead the ellipse's distance is kept; just outside the ellipse the distance is
+    its margin over the box sum, A - a - 1, continuous with the bumper gap inside."""
     from controllers.behaviour.ellipses import box_half_length_m, ellipse_semi_axes
     from controllers.behaviour.types import ObstaclePolicy, Obstacles
     from controllers.two_loop.fallback import needed_decel_mps2
@@ -198,7 +198,14 @@ def test_inside_an_ellipse_the_braking_need_uses_the_bumper_gap() -> None:
     far = Obstacles(s_m=np.array([160.0]), y_m=np.zeros(1), speed_s_mps=np.zeros(1),
                     speed_y_mps=np.zeros(1), semi_a_m=np.array([sa]), semi_b_m=np.array([sb]))
     assert needed_decel_mps2(x0, 20.0, far, policy, 1.0) == pytest.approx(
-        400.0 / (2.0 * (60.0 - 4.6 - 1.0)))
+        400.0 / (2.0 * (60.0 - sa)))
+    for ds_m, d_m in ((sa + 0.5, sa - 4.6 - 1.0), (sa - 1e-9, sa - 4.6 - 1.0),
+                      (4.6 + 2.0, 1.0)):
+        near = Obstacles(s_m=np.array([100.0 + ds_m]), y_m=np.zeros(1),
+                         speed_s_mps=np.zeros(1), speed_y_mps=np.zeros(1),
+                         semi_a_m=np.array([sa]), semi_b_m=np.array([sb]))
+        assert needed_decel_mps2(x0, 2.0, near, policy, 1.0) == pytest.approx(
+            4.0 / (2.0 * d_m)), ds_m
 
 
 def test_a_slower_car_in_the_passing_lane_is_followed_not_passed(path: FrenetPath) -> None:
