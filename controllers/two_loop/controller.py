@@ -127,7 +127,6 @@ class TwoLoopController:
         self._s_hint = 0.0
         self._t_prev: float | None = None
         self._t_first = 0.0
-        self._last_torque = 0.0
 
     @property
     def launch_count(self) -> int:
@@ -152,7 +151,6 @@ class TwoLoopController:
         self.lateral.reset()
         self.mrm.reset()
         self.jerk.reset()
-        self._last_torque = 0.0
         self.launch.reset(self.path, context.vehicle)
         self.tracker.reset(self.path, context.vehicle, p.outer.n_stages, st)
         meta, coef, knots = self.path.tables()
@@ -211,7 +209,8 @@ class TwoLoopController:
                 observation.t_s, x0, observation.obstacles, target, self._dt,
                 lateral_reference_m=y_ref, lateral_weight=c_y)
             if solved is not None and solved.fallback:
-                self.mrm.engage(t_s, speed, self._last_torque / (self._vp[0] * self._vp[6]))
+                self.mrm.engage(t_s, speed,
+                                self.jerk.last_torque_nm / (self._vp[0] * self._vp[6]))
             if solved is None or self.mrm.active:
                 plan = self._mrm_plan(x0, y_ref, target, dt, observation.obstacles)
             else:
@@ -231,16 +230,7 @@ class TwoLoopController:
             out = TrackerOutput(steer, torque, out.preview_err_t_m, out.preview_err_n_m, 0.0, 0.0)
             if not self.mrm.active:
                 self.mrm.engage(t_s, speed, -self.params.outer.fallback_decel_mps2)
-        m_r = self._vp[0] * self._vp[6]
-        if self.launch.active or lw > 0.0:
-            torque = self.jerk.follow(torque)  # the launch law owns the command
-        elif self.mrm.active:  # the manoeuvre's own jerk bound (emergency: higher)
-            torque = self.jerk.limit(torque, dt, m_r, self.mrm.ramp.jerk_mps3)
-        else:
-            urgent = self._braking_jerk_mps3(speed, plan) if \
-                self.jerk.brakes_harder_than_bound(torque, dt, m_r) else 0.0
-            torque = self.jerk.limit(torque, dt, m_r, urgent)
-        self._last_torque = float(torque)
+        torque = self._limit_torque(torque, dt, speed, plan, lw)
         self.launch.observe_torque(torque)
         t_end = time.perf_counter()
         self._t_prev = observation.t_s
@@ -283,6 +273,20 @@ class TwoLoopController:
         steer, torque = launch.command(st, x0, speed, target, self.lateral.raw_m,
                                        observation.obstacles, int(observation.pass_side), dt)
         return steer, torque, lw
+
+    def _limit_torque(self, torque_nm: float, dt: float, speed_mps: float, plan: OuterPlan,
+                      launch_weight: float) -> float:
+        """The jerk limiter's stage (module docstring, step 6): bypassed while the launch
+        law drives, bounded at the manoeuvre's own jerk while it drives, else at the
+        limiter's bounds raised for the plan's own urgent braking."""
+        m_r = self._vp[0] * self._vp[6]
+        if self.launch.active or launch_weight > 0.0:
+            return self.jerk.follow(torque_nm)
+        if self.mrm.active:
+            return self.jerk.limit(torque_nm, dt, m_r, self.mrm.ramp.jerk_mps3)
+        urgent = self._braking_jerk_mps3(speed_mps, plan) if \
+            self.jerk.brakes_harder_than_bound(torque_nm, dt, m_r) else 0.0
+        return self.jerk.limit(torque_nm, dt, m_r, urgent)
 
     def _braking_jerk_mps3(self, speed_mps: float, plan: OuterPlan) -> float:
         """The braking onset's jerk bound [m/s³] that the plan's own urgency calls for:

@@ -61,6 +61,11 @@ class JerkLimiter:
         self._last = None
         self.limited = False
 
+    @property
+    def last_torque_nm(self) -> float:
+        """The last torque handed out [N m] (0 before the first command of a run)."""
+        return 0.0 if self._last is None else self._last
+
     def limit(self, torque_nm: float, dt_s: float, torque_per_accel_nm: float,
               at_least_mps3: float = 0.0) -> float:
         """The requested ``torque_nm`` rate-limited (module docstring), both bounds raised
