@@ -93,6 +93,22 @@ def test_project_pose_heading_error(circle: FrenetPath) -> None:
     assert float(e) == pytest.approx(0.05, abs=1e-9)
 
 
+@settings(max_examples=200, deadline=None)
+@given(s=st.floats(0.0, 480.0), y=st.floats(-6.0, 6.0), hint_off=st.floats(-80.0, 80.0),
+       heading=st.floats(-7.0, 7.0))
+def test_project_pose_of_one_pose_equals_the_general_path_bit_for_bit(
+        s: float, y: float, hint_off: float, heading: float) -> None:
+    """The scalar fast path (one pose with a hint: the run loop's ego) gives exactly the
+    vectorised result, including hints Newton does not converge from (far ones)."""
+    path = FrenetPath.cached(_arc(400.0, 1.2, 200))
+    gx, gy = (float(v) for v in path.to_global(s, y))
+    got = path.project_pose(gx, gy, heading, s + hint_off)
+    s_ref, d_ref = path.project(np.array([gx]), np.array([gy]), np.array([s + hint_off]))
+    e_ref = (heading - path.gamma(s_ref) + np.pi) % (2 * np.pi) - np.pi
+    assert (float(got[0]), float(got[1]), float(got[2])) == \
+        (float(s_ref[0]), float(d_ref[0]), float(e_ref[0]))
+
+
 def test_kinked_polyline_bounded_and_close() -> None:
     # A 3 degree kink at s = 200 m (SUMO junction-like); y positive left.
     ang = np.radians(3.0)

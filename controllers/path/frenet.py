@@ -401,7 +401,19 @@ class FrenetPath:
                      heading: np.ndarray | float,
                      s_hint: np.ndarray | float | None = None,
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(s, y_lat, heading_error); heading_error = heading - gamma(s) wrapped to (-pi, pi]."""
+        """(s, y_lat, heading_error); heading_error = heading - gamma(s) wrapped to (-pi, pi].
+
+        One pose with a hint (the run loop's ego, every control step) takes the same
+        compiled kernels without the array wrapping (bit-identical results); anything
+        else, or a hint Newton does not converge from, goes the general way."""
+        if s_hint is not None and all(isinstance(v, (float, np.floating))
+                                      for v in (x, y, heading, s_hint)):
+            sf, df, ok = path_project_local(self._meta, self._coef, self._knot_xy,
+                                            float(x), float(y), float(s_hint))
+            if ok and abs(sf - float(s_hint)) <= 50.0:
+                g = path_gamma(self._meta, self._coef, sf)[0]
+                e = (float(heading) - g + np.pi) % (2 * np.pi) - np.pi
+                return np.asarray(sf), np.asarray(df), np.asarray(e)
         s, d = self.project(x, y, s_hint)
         err = np.asarray(heading, dtype=np.float64) - self.gamma(s)
         err = (err + np.pi) % (2 * np.pi) - np.pi
