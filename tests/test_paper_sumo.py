@@ -12,17 +12,14 @@
 from __future__ import annotations
 
 import json
-import math
-import re
 import subprocess
 import sys
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import pytest
-from browser import chromium, console_errors, needs_chromium, screenshot
+from browser import check_tick_labels, chromium, console_errors, needs_chromium, screenshot
 
 from reports.paper import build_paper
 from reports.paper.table import TIMING_MARK
@@ -108,16 +105,6 @@ def test_short_paper_catalog_findings_point_the_papers_way(short_run: Path) -> N
     assert page.count("<svg") >= 8 and "http://" not in page and "https://" not in page
 
 
-def _chart_ticks(driver: Any) -> list[dict[str, Any]]:
-    return driver.execute_script("""
-      return Array.from(document.querySelectorAll('svg.chart')).map(function(svg){
-        return {y0: +svg.dataset.y0, y1: +svg.dataset.y1, top: +svg.dataset.top,
-                h: +svg.dataset.h, log: svg.dataset.log === '1',
-                grid: svg.querySelector('path.grid').getAttribute('d'),
-                labels: Array.from(svg.querySelectorAll('text.yt')).map(function(t){
-                  return [t.textContent, +t.getAttribute('y')];})};});""")
-
-
 def _needs_chromium(fn: Callable[..., None]) -> Callable[..., None]:
     for mark in needs_chromium:
         fn = mark(fn)
@@ -136,19 +123,7 @@ def test_paper_page_in_chromium(short_run: Path) -> None:
         assert all(str(r).startswith(("file:", "data:")) for r in resources), resources
         assert driver.execute_script("return document.querySelector('main')"
                                      ".firstElementChild.id") == "findings"
-        checked = 0
-        for chart in _chart_ticks(driver):
-            grid_ys = [float(m) for m in re.findall(r"M64 ([-\d.]+)h", chart["grid"])]
-            for text, label_y in chart["labels"]:
-                line_y = label_y - 3.0  # a label sits 3 px below its gridline
-                assert min(abs(g - line_y) for g in grid_ys) < 0.01, (text, line_y)
-                value = float(text.replace("−", "-"))
-                if chart["log"]:  # the axis runs in log10 units
-                    value = math.log10(value)
-                at = chart["top"] + chart["h"] * (1 - (value - chart["y0"])
-                                                  / (chart["y1"] - chart["y0"]))
-                assert abs(at - line_y) < 0.02, (text, at, line_y)
-                checked += 1
+        checked = check_tick_labels(driver, "paper.html")
         assert checked > 25
         screenshot(driver, "paper_page")
     finally:
