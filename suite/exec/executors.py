@@ -15,7 +15,7 @@ Both publish every run directory atomically (:mod:`reports.record.run`) and take
 
 from __future__ import annotations
 
-from suite.exec.forkserver import PRELOAD, prestart_forkserver, stop_forkserver
+from suite.exec.forkserver import PRELOAD, stop_forkserver
 from suite.exec.jobs import (
     Executor,
     OnDone,
@@ -30,6 +30,6 @@ from suite.exec.ray_executor import MAX_NET_BYTES, RayExecutor, ray_payload
 from suite.exec.signals import StopRequest, stop_on_signals
 
 __all__ = ["KILL_GRACE_S", "MAX_NET_BYTES", "PRELOAD", "Executor", "LocalExecutor", "OnDone",
-           "RayExecutor", "RunJob", "StopRequest", "prestart_forkserver", "ray_payload",
+           "RayExecutor", "RunJob", "StopRequest", "ray_payload",
            "read_result", "record_in_memory", "run_job", "stop_forkserver",
            "stop_on_signals", "write_failure"]

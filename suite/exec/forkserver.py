@@ -5,7 +5,7 @@ calls :func:`prestart_forkserver` before anything heavy, so that the forkserver'
 preload (:data:`PRELOAD`: imports and numba kernels, :mod:`suite.exec.warmup`) runs in
 its own process while the command itself imports, validates the catalog and prepares the
 output; the :class:`suite.exec.local.LocalExecutor` then waits for that warm-up instead
-of starting its own (:func:`warm_up_thread`).
+of starting its own (both go through :func:`warm_up`).
 """
 
 from __future__ import annotations
@@ -16,8 +16,7 @@ import signal
 import threading
 from typing import Any
 
-__all__ = ["PRELOAD", "prestart_forkserver", "start_and_wait", "stop_forkserver",
-           "warm_up_thread"]
+__all__ = ["PRELOAD", "prestart_forkserver", "start_and_wait", "stop_forkserver", "warm_up"]
 
 PRELOAD = ["numpy", "pandas", "numba", "libsumo", "suite.run.runner", "suite.catalog",
            "controllers.builtin", "suite.exec.warmup"]
@@ -40,25 +39,29 @@ def start_and_wait(ctx: Any) -> None:
         pass
 
 
-def prestart_forkserver(start_method: str = "forkserver") -> bool:
-    """Start the forkserver and its preload now, in a background thread; returns whether
-    a warm-up is running. Call :func:`stop_forkserver` if the command ends before
-    running anything."""
-    if start_method != "forkserver":
-        return False
-    if start_method not in _prestarted:
+def warm_up(start_method: str) -> threading.Thread:
+    """The warm-up of this start method's server: started now in a background thread
+    (a forkserver with :data:`PRELOAD`) unless one already was; join it to wait."""
+    thread = _prestarted.get(start_method)
+    if thread is None:
         ctx: Any = mp.get_context(start_method)
-        ctx.set_forkserver_preload(PRELOAD)
+        if start_method == "forkserver":
+            ctx.set_forkserver_preload(PRELOAD)
         thread = threading.Thread(target=start_and_wait, args=(ctx,), name="hwyeval-warm-up",
                                   daemon=True)
         thread.start()
         _prestarted[start_method] = thread
+    return thread
+
+
+def prestart_forkserver(start_method: str = "forkserver") -> bool:
+    """Start the forkserver and its preload now (:func:`warm_up`); returns whether a
+    warm-up is running. Call :func:`stop_forkserver` if the command ends before running
+    anything."""
+    if start_method != "forkserver":
+        return False
+    warm_up(start_method)
     return True
-
-
-def warm_up_thread(start_method: str) -> threading.Thread | None:
-    """The thread of a :func:`prestart_forkserver` of this start method, if any."""
-    return _prestarted.get(start_method)
 
 
 def stop_forkserver() -> None:

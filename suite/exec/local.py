@@ -1,8 +1,8 @@
 """The local executor: up to ``jobs`` scenario processes at once on this machine.
 
 One scenario per process (libsumo hosts one simulation per process), started by a
-``forkserver`` with the heavy modules preloaded (:data:`PRELOAD`), so a catalog pays
-imports and numba cache loading once. The forkserver is started (and its preload
+``forkserver`` with the heavy modules preloaded (:data:`suite.exec.forkserver.PRELOAD`),
+so a catalog pays imports and numba cache loading once. The forkserver is started (and its preload
 awaited) before the first scenario, in a thread, so that the parent stays responsive
 to signals and no scenario's budget is spent on the warm-up;
 :func:`suite.exec.forkserver.prestart_forkserver` starts it earlier still, while the
@@ -24,7 +24,6 @@ from __future__ import annotations
 import multiprocessing as mp
 import multiprocessing.connection
 import signal
-import threading
 import time
 import traceback
 from collections import deque
@@ -34,17 +33,12 @@ from typing import Any
 
 from reports.record import RecordError, RunRecord
 from reports.record.run import discard_staging, remove_path
-from suite.exec.forkserver import (
-    PRELOAD,
-    start_and_wait,
-    stop_forkserver,
-    warm_up_thread,
-)
+from suite.exec.forkserver import stop_forkserver, warm_up
 from suite.exec.jobs import OnDone, RunJob, read_result, record_in_memory, run_job, write_failure
 from suite.exec.signals import POLL_S, StopRequest
 from suite.exec.worker import become_worker, signal_worker, terminate_workers
 
-__all__ = ["KILL_GRACE_S", "PRELOAD", "LocalExecutor", "stop_forkserver"]
+__all__ = ["KILL_GRACE_S", "LocalExecutor"]
 
 KILL_GRACE_S = 10.0  # a process still alive this long after its budget is killed [s]
 
@@ -73,9 +67,7 @@ class LocalExecutor:
             raise ValueError(f"jobs must be a whole number >= 1, got {jobs!r}")
         self.jobs = jobs
         self.ctx: Any = mp.get_context(start_method)
-        self.start_method = start_method
-        if start_method == "forkserver":
-            self.ctx.set_forkserver_preload(PRELOAD)
+        self.start_method = start_method  # a forkserver's preload is set by warm_up
 
     # ------------------------------------------------------------------ the loop
     def run(self, jobs: Sequence[RunJob], on_done: OnDone | None = None,
@@ -117,11 +109,7 @@ class LocalExecutor:
     def _warm_up(self, stop: StopRequest) -> bool:
         """Start the forkserver and wait for its preload in a thread, polling ``stop``;
         False when stopped meanwhile."""
-        thread = warm_up_thread(self.start_method)
-        if thread is None:
-            thread = threading.Thread(target=start_and_wait, args=(self.ctx,),
-                                      name="hwyeval-warm-up", daemon=True)
-            thread.start()
+        thread = warm_up(self.start_method)
         while thread.is_alive():
             if stop.requested:
                 return False
