@@ -23,8 +23,6 @@ finished (``--resume`` runs the rest; docs/reliability.md).
 from __future__ import annotations
 
 import argparse
-import atexit
-import os
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
@@ -167,13 +165,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def entry() -> NoReturn:
-    """The ``hwyeval`` executable: :func:`main`, then exit without tearing the
-    interpreter down. The atexit handlers run (temporary directories, logging, Ray's
-    shutdown, multiprocessing), the output streams are flushed; only the destruction of
-    every module's objects is skipped: after a run that had pandas, numba, pyarrow and
-    the reports loaded it took 0.7 s, a tenth of a 4-run catalog's whole command
-    (docs/performance.md). Every file is written and closed by then (each writer closes
-    its own), so nothing is lost."""
+    """The ``hwyeval`` executable: :func:`main`, then
+    :func:`suite.exec.quick_exit.exit_without_teardown` (the atexit handlers run and the
+    streams are flushed; the 0.7 s destruction of every module's objects is skipped)."""
+    from suite.exec.quick_exit import exit_without_teardown
+
     try:
         code = main()
     except SystemExit as exc:  # argparse's usage errors and --version
@@ -182,13 +178,7 @@ def entry() -> NoReturn:
         else:  # as the interpreter does with sys.exit("message")
             print(exc.code, file=sys.stderr)
             code = 1
-    atexit._run_exitfuncs()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):  # a closed pipe or stream: nothing left to say
-            pass
-    os._exit(code)
+    exit_without_teardown(code)
 
 
 if __name__ == "__main__":

@@ -13,7 +13,8 @@ In the forkserver itself (not when imported anywhere else) it also makes the ser
 exit quick: the forkserver ends by ``SystemExit`` once its parent is gone, and the
 interpreter's teardown of everything preloaded then took 0.55 s, during which it still
 held the command's stdout and stderr (a pipe reading ``hwyeval run`` saw its end that
-much later). An atexit handler runs the other handlers, flushes and calls ``os._exit``.
+much later). An atexit handler ends it with
+:func:`suite.exec.quick_exit.exit_without_teardown`.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ import sumo_nets  # noqa: F401 - the bundled networks
 from controllers import registry
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
 from controllers.protocol import Observation, Obstacles, ScenarioContext, SumoDriverModel
+from suite.exec.quick_exit import exit_without_teardown
 
 
 def in_forkserver() -> bool:
@@ -49,14 +51,8 @@ def in_forkserver() -> bool:
 
 
 def _exit_without_teardown() -> None:
-    atexit.unregister(_exit_without_teardown)
-    atexit._run_exitfuncs()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
-    os._exit(0)
+    atexit.unregister(_exit_without_teardown)  # the other handlers run, not this again
+    exit_without_teardown(0)
 
 
 def warm_up(steps: int = 3) -> None:
