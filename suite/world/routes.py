@@ -130,13 +130,18 @@ class RouteFile:
         speed = tr.lane_speed_mps(lane) if tr is not None else None
         return ("bg" if speed is None else f"bg_l{lane}"), speed
 
+    def _place(self, route_pos_m: float, length_m: float) -> tuple[str, int, float]:
+        """(edge, its index on the route, departPos on it [m]) of a car placed at a route
+        position: its front kept 0.1 m inside the edge, its rear on it."""
+        edge, pos_on_edge = self.network.locate(self.route, route_pos_m)
+        pos = min(max(pos_on_edge, length_m + 0.1), self.network.edge_length_m(edge) - 0.1)
+        return edge, self.route.index(edge), pos
+
     def _stalled(self, i: int) -> list[str]:
         st = self.scenario.stalled[i]
         vid = f"{STALLED_PREFIX}{i}"
         self.stalled_ids.append(vid)
-        edge, pos_on_edge = self.network.locate(self.route, st.pos_m)
-        k = self.route.index(edge)
-        pos = min(max(pos_on_edge, st.length_m + 0.1), self.network.edge_length_m(edge) - 0.1)
+        edge, k, pos = self._place(st.pos_m, st.length_m)
         return [
             f'  <route id="r_{vid}" edges="{" ".join(self.route[k:])}"/>',
             f'  <vType id="stalled_{i}" vClass="passenger" color="255,60,60" '
@@ -151,9 +156,7 @@ class RouteFile:
     def _actor(self, i: int) -> list[str]:
         actor = self.scenario.actors[i]
         vid = actor.sumo_id
-        edge, pos_on_edge = self.network.locate(self.route, actor.pos_m)
-        k = self.route.index(edge)
-        pos = min(max(pos_on_edge, actor.length_m + 0.1), self.network.edge_length_m(edge) - 0.1)
+        edge, k, pos = self._place(actor.pos_m, actor.length_m)
         return [
             f'  <route id="r_{vid}" edges="{" ".join(self.route[k:])}"/>',
             f'  <vType id="t_{vid}" vClass="passenger" color="255,160,0" sigma="0" '
