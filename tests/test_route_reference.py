@@ -17,7 +17,13 @@ from scipy.optimize import lsq_linear
 import sumo_nets
 from suite.road.lane_graph import RouteLaneGraph
 from suite.road.network import RoadNetwork
-from suite.road.reference import TubeParams, box_qp, resample, smooth_in_tube
+from suite.road.reference import (
+    TubeParams,
+    box_qp,
+    offsets_to_polyline,
+    resample,
+    smooth_in_tube,
+)
 from suite.road.route_reference import build_reference
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "nets_real"
@@ -74,6 +80,45 @@ def test_a_kink_is_rounded_within_the_tube_at_the_radius_the_tube_forces(alpha_d
     # Away from the kink the curve lies on the polyline.
     far = (res.s_m < 100.0) | (res.s_m > res.s_m[-1] - 100.0)
     assert np.max(np.abs(dev[far])) < 2e-3
+
+
+def _offsets_numpy(base: np.ndarray, normals: np.ndarray, poly: np.ndarray,
+                   window: int = 40) -> np.ndarray:
+    """The vectorised numpy form the compiled kernel replaced (gathered windows)."""
+    n = len(base)
+    a, ab = poly[:-1], poly[1:] - poly[:-1]
+    denom = np.maximum(np.sum(ab * ab, axis=1), 1e-12)
+    j = np.clip(np.arange(n)[:, None] + np.arange(-window, window)[None, :], 0, n - 2)
+    rel = base[:, None, :] - a[j]
+    t = np.clip(np.einsum("nwd,nwd->nw", rel, ab[j]) / denom[j], 0.0, 1.0)
+    near = a[j] + t[..., None] * ab[j]
+    dist = np.hypot(near[..., 0] - base[:, None, 0], near[..., 1] - base[:, None, 1])
+    q = near[np.arange(n), np.argmin(dist, axis=1)]
+    out: np.ndarray = np.einsum("nd,nd->n", q - base, normals)
+    return out
+
+
+def test_offsets_to_a_parallel_polyline_are_its_distance_along_the_normal() -> None:
+    x = np.linspace(0.0, 200.0, 401)
+    base = np.column_stack([x, np.zeros_like(x)])
+    normals = np.tile([0.0, 1.0], (x.size, 1))
+    poly = np.column_stack([x, np.full_like(x, -1.5)])
+    np.testing.assert_allclose(offsets_to_polyline(base, normals, poly), -1.5, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_compiled_offsets_equal_the_numpy_form_bit_for_bit(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = 300
+    heading = np.cumsum(rng.normal(0.0, 0.02, n))
+    base = np.cumsum(np.column_stack([np.cos(heading), np.sin(heading)]) * 0.5, axis=0)
+    tan = np.gradient(base, axis=0)
+    tan /= np.hypot(*tan.T)[:, None]
+    normals = np.column_stack([-tan[:, 1], tan[:, 0]])
+    poly = base + normals * rng.uniform(-2.0, 2.0, n)[:, None] + rng.normal(0, 0.05, (n, 2))
+    for window in (3, 40):
+        want = _offsets_numpy(base, normals, poly, window)
+        assert np.array_equal(offsets_to_polyline(base, normals, poly, window), want)
 
 
 def test_a_straight_polyline_stays_straight() -> None:

@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
@@ -178,26 +179,45 @@ def _normals(curve: FloatArray) -> FloatArray:
     return np.column_stack([-tan[:, 1], tan[:, 0]])
 
 
-def _offsets_to_polyline(base: FloatArray, normals: FloatArray, poly: FloatArray,
+def offsets_to_polyline(base: FloatArray, normals: FloatArray, poly: FloatArray,
                          window: int = 40) -> FloatArray:
     """Signed distance along each base normal to the resampled polyline ``poly`` (same
     length as ``base``, point k near point k): the polyline's offset from the base.
 
-    Each base point is projected onto the polyline segments within ``window`` points of
-    its index; the nearest projection's offset along the normal is returned.
+    Each base point is projected onto the polyline segments j = clip(k + w, 0, n - 2),
+    w in [-window, window), of its index k; the offset along the normal of the nearest
+    projection (the first of equals) is returned. Shapes: base, normals, poly (n, 2);
+    result (n,) [m].
     """
-    n = len(base)
-    a, ab = poly[:-1], poly[1:] - poly[:-1]
-    denom = np.maximum(np.sum(ab * ab, axis=1), 1e-12)
-    k = np.arange(n)[:, None]
-    j = np.clip(k + np.arange(-window, window)[None, :], 0, n - 2)  # (n, 2 window)
-    rel = base[:, None, :] - a[j]
-    t = np.clip(np.einsum("nwd,nwd->nw", rel, ab[j]) / denom[j], 0.0, 1.0)
-    near = a[j] + t[..., None] * ab[j]
-    dist = np.hypot(near[..., 0] - base[:, None, 0], near[..., 1] - base[:, None, 1])
-    best = np.argmin(dist, axis=1)
-    q = near[np.arange(n), best]
-    out: FloatArray = np.einsum("nd,nd->n", q - base, normals)
+    out: FloatArray = _offsets_kernel(np.ascontiguousarray(base, dtype=np.float64),
+                                      np.ascontiguousarray(normals, dtype=np.float64),
+                                      np.ascontiguousarray(poly, dtype=np.float64),
+                                      int(window))
+    return out
+
+
+# Compiled: the numpy form gathered (n, 2 window, 2) arrays, 14 ms a call on a 1 km road
+# and three calls per run (1 ms compiled; the same operations in the same order, so the
+# same numbers bit for bit).
+@numba.njit(cache=True)
+def _offsets_kernel(base: FloatArray, normals: FloatArray, poly: FloatArray,
+                    window: int) -> FloatArray:
+    n = base.shape[0]
+    out = np.empty(n)
+    for k in range(n):
+        best = math.inf
+        qx = qy = 0.0
+        for w in range(-window, window):
+            j = min(max(k + w, 0), n - 2)
+            ax, ay = poly[j, 0], poly[j, 1]
+            abx, aby = poly[j + 1, 0] - ax, poly[j + 1, 1] - ay
+            den = max(abx * abx + aby * aby, 1e-12)
+            t = min(max(((base[k, 0] - ax) * abx + (base[k, 1] - ay) * aby) / den, 0.0), 1.0)
+            nx, ny = ax + t * abx, ay + t * aby
+            d = math.hypot(nx - base[k, 0], ny - base[k, 1])
+            if d < best:
+                best, qx, qy = d, nx, ny
+        out[k] = (qx - base[k, 0]) * normals[k, 0] + (qy - base[k, 1]) * normals[k, 1]
     return out
 
 
@@ -243,7 +263,7 @@ def smooth_in_tube(res: Resampled, params: TubeParams, half_width_m: FloatArray 
     curve = base
     for _ in range(2):  # the second pass re-bases on the first solution
         normals = _normals(base)
-        o0 = _offsets_to_polyline(base, normals, res.points)
+        o0 = offsets_to_polyline(base, normals, res.points)
         # 1 mm inside the tube: the bound is along the base normal, the deviation is the
         # true distance to the polyline (equal to first order, not exactly).
         inner = np.maximum(half - 1e-3, 0.5 * half)
@@ -251,4 +271,4 @@ def smooth_in_tube(res: Resampled, params: TubeParams, half_width_m: FloatArray 
         curve = base + normals * offsets[:, None]
         base = curve
     normals = _normals(curve)
-    return curve, -_offsets_to_polyline(curve, normals, res.points)
+    return curve, -offsets_to_polyline(curve, normals, res.points)
