@@ -12,10 +12,11 @@ jerk [m/s³]: |d a⃗/dt| with a⃗ = R(ψ)·[a_long, a_lat] the acceleration in
     frame; it includes the rotation of a⃗, so a steady turn at lateral acceleration a
     and yaw rate r has |jerk| = a·r.
 
-Smoothing and derivatives: Savitzky–Golay (``scipy.signal.savgol_filter``) as nuPlan
-does, polynomial order ``SG_POLYORDER`` = 2 over ``SG_WINDOW_S`` = 0.5 s, i.e.
-``window = max(5, odd(round(0.5 s / dt)))`` samples, shrunk to the trace length for
-short traces (np.gradient below 3 samples). Accelerations and the yaw rate are
+Smoothing and derivatives: Savitzky–Golay (:mod:`reports.metrics.savgol`, what
+``scipy.signal.savgol_filter`` computes with ``mode='interp'``) as nuPlan does,
+polynomial order ``SG_POLYORDER`` = 2 over ``SG_WINDOW_S`` = 0.5 s, i.e.
+``window = max(5, odd(round(0.5 s / dt)))`` samples, shrunk to the trace length for short
+traces (np.gradient below 3 samples). Accelerations and the yaw rate are
 smoothed with the same filter (derivative order 0) before their extremes are taken;
 ``mode='interp'`` reproduces ramps and constants exactly, end samples included.
 """
@@ -28,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from reports.metrics.context import RunContext
+from reports.metrics.savgol import savgol_filter
 from reports.metrics.values import Measured, extreme, measured
 from reports.record.columns import FloatColumn
 
@@ -65,12 +67,7 @@ def sg(values: np.ndarray, dt: float, deriv: int = 0) -> FloatColumn:
         return np.full(n, np.nan)
     w = sg_window(n, dt)
     if w > SG_POLYORDER:
-        # Imported here: scipy.signal costs ~0.9 s to import, which every command line
-        # that reads records (reports, compare, list) would otherwise pay at start.
-        from scipy.signal import savgol_filter
-
-        out: FloatColumn = savgol_filter(y, window_length=w, polyorder=SG_POLYORDER,
-                                         deriv=deriv, delta=dt, mode="interp")
+        out: FloatColumn = savgol_filter(y, w, SG_POLYORDER, deriv=deriv, delta=dt)
         return out
     if deriv == 0:
         return y

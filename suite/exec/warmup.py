@@ -2,12 +2,12 @@
 
 Importing this module loads every compiled kernel from numba's on-disk cache (or
 compiles it once) by running the two-loop controller for a few steps on a tiny
-problem, and imports the heavy modules a run needs (Rerun, ``scipy.signal`` that the
-comfort metrics import lazily so that the CLI starts fast, ``pyarrow.parquet``, the XML
+problem, and imports the heavy modules a run needs (Rerun, ``pyarrow.parquet``, the XML
 parser of the network reader, the bundled networks), so that each forked scenario
 process inherits them instead of paying for them again: a catalog pays compilation and
 imports once. Missing one costs every run its import (``scipy.signal`` and its
-dependencies alone were 0.35 s of each 40 s run; docs/performance.md).
+dependencies were 0.35 s of each 40 s run until they were preloaded; the metrics no
+longer use it at all, which took 0.35-0.9 s off the preload; docs/performance.md).
 
 In the forkserver itself (not when imported anywhere else) it also makes the server's
 exit quick: the forkserver ends by ``SystemExit`` once its parent is gone, and the
@@ -27,7 +27,6 @@ from types import FrameType
 
 import numpy as np
 import pyarrow.parquet  # noqa: F401 - the run's files
-import scipy.signal  # noqa: F401 - imported lazily by the comfort metrics (not by the CLI)
 
 import reports.metrics  # noqa: F401
 import suite.rerun.log  # noqa: F401 - rerun
@@ -36,6 +35,7 @@ from controllers import registry
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
 from controllers.protocol import Observation, Obstacles, ScenarioContext, SumoDriverModel
 from suite.exec.quick_exit import exit_without_teardown
+from suite.road.reference import offsets_to_polyline
 
 
 def in_forkserver() -> bool:
@@ -56,6 +56,8 @@ def _exit_without_teardown() -> None:
 
 
 def warm_up(steps: int = 3) -> None:
+    line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    offsets_to_polyline(line, np.tile([0.0, 1.0], (3, 1)), line)  # the reference's kernel
     vehicle = VehicleParams()
     reference = np.array([[0.0, 0.0], [400.0, 0.0]])
     state = np.array([10.0, 0.0, 0.0, 20.0, 0.0, 0.0])
