@@ -17,11 +17,13 @@ import dataclasses
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 
 import numpy as np
 import numpy.typing as npt
-import pandas as pd
+
+if TYPE_CHECKING:  # pandas is imported where frames are read or built: scenario
+    import pandas as pd  # processes write with pyarrow and never pay its import
 
 FloatColumn = npt.NDArray[np.float64]
 IntColumn = npt.NDArray[np.int64]
@@ -101,6 +103,8 @@ class ColumnGroup:
 
 
 def _coerce(values: np.ndarray, dtype: Any, fill: Any) -> np.ndarray:
+    import pandas as pd
+
     if dtype is np.object_:
         return np.array(["" if v is None or (isinstance(v, float) and math.isnan(v)) else str(v)
                          for v in values], dtype=object)
@@ -243,12 +247,18 @@ class Trace:
                      extra={k: v[:n] for k, v in self.extra.items()},
                      **groups)
 
-    def to_frame(self) -> pd.DataFrame:
+    def table_columns(self) -> dict[str, np.ndarray]:
+        """Every column of trace.parquet, in file order: step, t_s, the groups, extra."""
         data: dict[str, np.ndarray] = {"step": self.step, "t_s": self.t_s}
         for name in TRACE_GROUPS:
             data.update(dict(getattr(self, name).columns()))
         data.update(self.extra)
-        return pd.DataFrame(data)
+        return data
+
+    def to_frame(self) -> pd.DataFrame:
+        import pandas as pd
+
+        return pd.DataFrame(self.table_columns())
 
     @classmethod
     def from_frame(cls, frame: pd.DataFrame) -> Trace:
@@ -287,6 +297,8 @@ class NeighbourColumns(ColumnGroup):
     stalled: BoolColumn = col("-", "a stalled vehicle of the scenario")
 
     def to_frame(self) -> pd.DataFrame:
+        import pandas as pd
+
         return pd.DataFrame(dict(self.columns()))
 
 
@@ -308,6 +320,8 @@ class SeriesColumns(ColumnGroup):
     ellipse_margin: FloatColumn = col("-", "min ellipse value of the ego CG (< 0 inside)")
 
     def to_frame(self) -> pd.DataFrame:
+        import pandas as pd
+
         return pd.DataFrame(dict(self.columns()))
 
 
