@@ -55,10 +55,14 @@ def _figures(rtf: float, p99_us: float) -> dict:  # type: ignore[type-arg]
                  "max_us": 400.0}
              for k in ("controller_step", "behaviour_and_controller", "behaviour", "dynamics")}
     run = {"scenario": "a", "realtime_factor": 30.0, "peak_rss_mb": 210.0}
-    command = {"sim_s": 160.0, "wall_s": 160.0 / rtf, "realtime_factor": rtf,
-               "runs_realtime_factor": rtf * 1.5, "steps_us": steps, "runs": [run]}
+    wall = 160.0 / rtf
+    command = {"sim_s": 160.0, "wall_s": wall, "realtime_factor": rtf,
+               "runs_realtime_factor": rtf * 1.5, "runs_span_s": wall / 1.5,
+               "before_runs_s": wall / 4, "after_runs_s": wall - wall / 1.5 - wall / 4,
+               "steps_us": steps, "runs": [run]}
     ratio = {"raw": {"p50_s": 35.0, "var_s2": 500.0},
-             "min_of_repeats": {"p50_s": 33.0, "var_s2": 2000.0}}
+             "min_of_repeats": {"p50_s": 33.0, "var_s2": 2000.0},
+             "min_of_repeats_with_obstacle": {"p50_s": 30.0, "var_s2": 4000.0}}
     return {"machine": {}, "load_start": [0.1, 0.1, 0.1], "load_end": [0.2, 0.1, 0.1],
             "controller": {"outer_update": {"p50_us": 24.0, "p99_us": 40.0},
                            "control_step": {"p50_us": 110.0, "p99_us": 150.0}},
@@ -83,6 +87,8 @@ def test_targets_and_summary() -> None:
     text = "\n".join(summary_lines(fig))
     assert "TARGET realtime_factor_jobs1_log: 55.00 (target >= 50) -> met" in text
     assert "TARGET jobs2_over_jobs1: 1.50 (target >= 1.7) -> NOT met" in text
+    assert "(0.73 s before the first run, 1.94 s of runs, 0.24 s after the last)" in text
+    assert "variance x2000; with it: variance x4000" in text  # the pooled one is judged
     slow = targets(_figures(rtf=20.0, p99_us=300.0))
     assert not slow["realtime_factor_jobs1_log"]["met"]
     assert not slow["controller_step_p99_us"]["met"]
@@ -123,6 +129,10 @@ def test_a_real_command_is_timed(tmp_path: Path) -> None:
     assert timing.exit_code in (0, 1) and len(timing.runs) == 2
     assert timing.sim_s == pytest.approx(4.0, abs=0.05)
     assert 0.0 < timing.runs_span_s < timing.wall_s
+    # the three phases make up the command (file mtimes against the parent's clock)
+    assert 0.0 < timing.before_runs_s < timing.wall_s and 0.0 < timing.after_runs_s
+    assert timing.before_runs_s + timing.runs_span_s + timing.after_runs_s == pytest.approx(
+        timing.wall_s, abs=1e-6)
     assert all(r.peak_rss_mb > 50.0 and 0.0 < r.stages_s < r.wall_s for r in timing.runs)
     st = timing.steps["controller_step"]
     assert st.n == 200 and 0.0 < st.p50_us <= st.p99_us <= st.max_us

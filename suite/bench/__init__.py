@@ -191,7 +191,12 @@ def _solver_lines(sv: dict[str, Any] | None) -> list[str]:
         lines.append(f"{name} / C/GMRES: p50 x{_fmt(r['raw']['p50_s'])}, variance "
                      f"x{_fmt(r['raw']['var_s2'], 0)} raw; per-update min of {sv['repeats']} "
                      f"repeats: p50 x{_fmt(r['min_of_repeats']['p50_s'])}, variance "
-                     f"x{_fmt(r['min_of_repeats']['var_s2'], 0)}")
+                     f"x{_fmt(r['min_of_repeats']['var_s2'], 0)}"
+                     + "".join(f"; {label}: variance x{_fmt(r[key]['var_s2'], 0)}"
+                               for label, key in (("without the obstacle",
+                                                   "min_of_repeats_without_obstacle"),
+                                                  ("with it", "min_of_repeats_with_obstacle"))
+                               if key in r))
     cg = sv["cgmres"]["raw"]
     lines.append(f"C/GMRES update p50 {cg['p50_s'] * 1e6:.1f} us; Ipopt (barrier) p50 "
                  f"{sv['ipopt_barrier']['raw']['p50_s'] * 1e6:.0f} us")
@@ -225,7 +230,9 @@ def _command_lines(cmd: dict[str, Any] | None) -> list[str]:
         lines.append(
             f"{label}: {t['sim_s']:.0f} s simulated in {t['wall_s']:.2f} s -> "
             f"x{t['realtime_factor']:.1f} real time over the whole command, "
-            f"x{t['runs_realtime_factor']:.1f} over the scenario phase; controller step "
+            f"x{t['runs_realtime_factor']:.1f} over the scenario phase "
+            f"({_fmt(t['before_runs_s'], 2)} s before the first run, {t['runs_span_s']:.2f} s "
+            f"of runs, {_fmt(t['after_runs_s'], 2)} s after the last); controller step "
             f"p50 {_fmt(st['controller_step']['p50_us'])} / p99 "
             f"{_fmt(st['controller_step']['p99_us'])} us, behaviour + controller p50 "
             f"{_fmt(st['behaviour_and_controller']['p50_us'])} / p99 "

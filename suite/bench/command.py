@@ -8,7 +8,10 @@ Per command (:class:`CommandTiming`):
   catalog's simulated seconds / ``wall_s``;
 * ``runs_span_s``: from the first run's start (its SUMO route file written) to the last
   run's end (its run.json written), i.e. the scenario phase without the command's start
-  and its reports; ``runs_realtime_factor`` over that span;
+  and its reports; ``runs_realtime_factor`` over that span; ``before_runs_s`` (process
+  start, imports, catalog checks and the workers' preload, until the first run starts)
+  and ``after_runs_s`` (the last run's end to the command's: the reports, the exit) are
+  the rest of ``wall_s``;
 * per run: wall (build, loop, judging, writing, Rerun log), its stage times, peak RSS of
   its process [MB], status;
 * per-step times pooled over the runs (trace columns): ``controller_step`` = the
@@ -92,6 +95,8 @@ class CommandTiming:
     exit_code: int
     runs: tuple[RunFigures, ...]
     steps: dict[str, StepStats] = field(default_factory=dict)
+    before_runs_s: float = float("nan")
+    after_runs_s: float = float("nan")
 
     def __post_init__(self) -> None:
         if self.jobs < 1:
@@ -111,7 +116,8 @@ class CommandTiming:
 
     def as_dict(self) -> dict[str, Any]:
         return {"jobs": self.jobs, "log": self.log, "wall_s": self.wall_s,
-                "runs_span_s": self.runs_span_s, "sim_s": self.sim_s,
+                "runs_span_s": self.runs_span_s, "before_runs_s": self.before_runs_s,
+                "after_runs_s": self.after_runs_s, "sim_s": self.sim_s,
                 "exit_code": self.exit_code, "realtime_factor": self.realtime_factor,
                 "runs_realtime_factor": self.runs_realtime_factor,
                 "runs": [{**r.__dict__, "realtime_factor": r.realtime_factor}
@@ -127,19 +133,27 @@ def run_command(catalog: Path, out: Path, jobs: int, log: bool) -> CommandTiming
     args = [sys.executable, "-m", "suite", "run", str(catalog), "--out", str(out),
             "--jobs", str(jobs)] + ([] if log else ["--no-log"])
     env = dict(os.environ, PYTHONUNBUFFERED="1")
+    epoch0 = time.time()  # the run files' mtimes are on this clock
     t0 = time.perf_counter()
     proc = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True,
                           check=False)
     wall = time.perf_counter() - t0
     if proc.returncode not in (0, 1):
         raise RuntimeError(f"{' '.join(args)} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
-    runs, steps, span = _read_runs(out)
+    runs, steps, (first_start, last_end) = _read_runs(out)
+    span = last_end - first_start if runs else 0.0
+    before = first_start - epoch0 if runs else float("nan")
+    after = epoch0 + wall - last_end if runs else float("nan")
     return CommandTiming(jobs=jobs, log=log, wall_s=wall, runs_span_s=span,
                          sim_s=sum(r.sim_s for r in runs), exit_code=proc.returncode,
-                         runs=tuple(runs), steps=steps)
+                         runs=tuple(runs), steps=steps, before_runs_s=before,
+                         after_runs_s=after)
 
 
-def _read_runs(out: Path) -> tuple[list[RunFigures], dict[str, StepStats], float]:
+def _read_runs(out: Path) -> tuple[list[RunFigures], dict[str, StepStats],
+                                   tuple[float, float]]:
+    """The runs, their pooled step times and (first run's start, last run's end) as
+    epoch seconds (file mtimes; nan, nan without runs)."""
     import pyarrow.parquet as pq
 
     runs: list[RunFigures] = []
@@ -170,5 +184,5 @@ def _read_runs(out: Path) -> tuple[list[RunFigures], dict[str, StepStats], float
         starts.append((routes if routes.exists() else run_json).stat().st_mtime)
         ends.append(run_json.stat().st_mtime)
     steps = {k: StepStats.of(np.concatenate(v)) for k, v in pools.items() if v}
-    span = max(ends) - min(starts) if runs else 0.0
-    return runs, steps, span
+    bounds = (min(starts), max(ends)) if runs else (float("nan"), float("nan"))
+    return runs, steps, bounds
