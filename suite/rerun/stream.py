@@ -10,7 +10,7 @@ replaced by step × ``info.step_s``). Trace *rows* (what ``Failure.step`` and
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pyarrow as pa
@@ -21,21 +21,33 @@ from reports.record import RunRecord
 Colour = tuple[int, int, int, int]
 
 
-def strip_array(strips: np.ndarray | list[np.ndarray]) -> Any:
-    """Line strips as Rerun's arrow type, built in one go: a list of (n_k, 2) arrays ->
-    ``list<fixed_size_list<float32>[2]>`` with offsets from the n_k. Rerun's own
-    conversion of a list goes strip by strip (4000 small conversions for a 40 s run's
-    plan, preview and ellipses, a third of the log's time). Anything else is handed to
-    Rerun as it is."""
-    if not isinstance(strips, list) or not all(
+class FlatStrips(NamedTuple):
+    """Line strips stored end to end: ``points`` (M, 2) [m], strip k is the next
+    ``counts[k]`` of them (sum(counts) = M)."""
+
+    points: np.ndarray
+    counts: np.ndarray
+
+
+def strip_array(strips: np.ndarray | list[np.ndarray] | FlatStrips) -> Any:
+    """Line strips as Rerun's arrow type, built in one go: a list of (n_k, 2) arrays (or
+    :class:`FlatStrips`) -> ``list<fixed_size_list<float32>[2]>`` with offsets from the
+    n_k. Rerun's own conversion of a list goes strip by strip (4000 small conversions for
+    a 40 s run's plan, preview and ellipses, a third of the log's time). Anything else is
+    handed to Rerun as it is."""
+    if isinstance(strips, FlatStrips):
+        counts = np.asarray(strips.counts, dtype=np.int64)
+        flat = np.asarray(strips.points, dtype=np.float64).astype(np.float32).ravel()
+    elif isinstance(strips, list) and all(
             isinstance(x, np.ndarray) and x.ndim == 2 and x.shape[1] == 2 for x in strips):
+        counts = np.fromiter((len(x) for x in strips), dtype=np.int64, count=len(strips))
+        flat = (np.concatenate(strips).astype(np.float32).ravel() if strips
+                else np.zeros(0, np.float32))
+    else:
         return strips
     datatype = rr.components.LineStrip2DBatch._ARROW_DATATYPE
-    counts = np.fromiter((len(x) for x in strips), dtype=np.int64, count=len(strips))
-    offsets = np.zeros(len(strips) + 1, dtype=np.int32)
+    offsets = np.zeros(len(counts) + 1, dtype=np.int32)
     np.cumsum(counts, out=offsets[1:])
-    flat = (np.concatenate(strips).astype(np.float32).ravel() if strips
-            else np.zeros(0, np.float32))
     inner = pa.FixedSizeListArray.from_arrays(pa.array(flat, type=pa.float32()),
                                               type=datatype.value_type)
     return pa.ListArray.from_arrays(pa.array(offsets, type=pa.int32()), inner, type=datatype)
@@ -79,7 +91,7 @@ class RunLog:
     def static(self, path: str, *archetypes: Any) -> None:
         self.rec.log(path, *archetypes, static=True)
 
-    def strips_per_step(self, path: str, strips: np.ndarray | list[np.ndarray],
+    def strips_per_step(self, path: str, strips: np.ndarray | list[np.ndarray] | FlatStrips,
                         lengths: np.ndarray, labels: list[str] | None = None,
                         label_lengths: np.ndarray | None = None,
                         colors: np.ndarray | None = None) -> None:

@@ -15,7 +15,7 @@ import rerun as rr
 from reports.metrics.geometry import box_corners
 from suite.rerun.blueprint import VIEW_FRAME_SCALE, north_up_transform
 from suite.rerun.paths import ENTITY_PATHS
-from suite.rerun.stream import Colour, RunLog
+from suite.rerun.stream import Colour, FlatStrips, RunLog
 
 # Colours chosen to read on the viewer's dark background.
 C_LANE = (200, 200, 200, 255)
@@ -240,23 +240,29 @@ def log_ellipses(log: RunLog) -> None:
 
 
 def _polyline_per_step(log: RunLog, values: np.ndarray
-                       ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """Valid points of a (T, P, 2) array per step -> (strips, lengths, last point (T, 2))."""
+                       ) -> tuple[FlatStrips, np.ndarray, np.ndarray]:
+    """Valid points of a (T, P, 2) array per step -> (the strips of the steps with two
+    or more, strips per step (T,) 0 or 1, last valid point (T, 2), NaN where none)."""
     arr = per_step_array(log, values)
     last = np.full((log.n, 2), np.nan)
     if arr is None or arr.ndim != 3 or arr.shape[2] != 2:
-        return [], np.zeros(log.n, np.int64), last
+        return FlatStrips(np.zeros((0, 2)), np.zeros(0, np.int64)), np.zeros(log.n, np.int64), \
+            last
     ok = np.all(np.isfinite(arr), axis=2)
-    strips: list[np.ndarray] = []
-    lengths = np.zeros(log.n, np.int64)
-    for i in range(log.n):
-        pts = arr[i][ok[i]]
-        if len(pts) >= 2:
-            strips.append(pts)
-            lengths[i] = 1
-        if len(pts):
-            last[i] = pts[-1]
-    return strips, lengths, last
+    valid = ok.sum(axis=1)
+    strip = valid >= 2
+    # boolean indexing walks rows in order: each step's valid points, in point order
+    strips = FlatStrips(arr[ok & strip[:, None]], valid[strip].astype(np.int64))
+    has = valid > 0
+    rows = np.flatnonzero(has)
+    last[rows] = arr[rows, _last_true(ok[rows])]
+    return strips, strip.astype(np.int64), last
+
+
+def _last_true(mask: np.ndarray) -> np.ndarray:
+    """Column of the last True of each row of a (T, P) mask (rows with one at least)."""
+    out: np.ndarray = mask.shape[1] - 1 - np.argmax(mask[:, ::-1], axis=1)
+    return out
 
 
 def log_plan_preview(log: RunLog) -> None:
@@ -275,15 +281,21 @@ def log_plan_preview(log: RunLog) -> None:
 def _recorded_preview_error(log: RunLog, prev: np.ndarray, along: np.ndarray,
                             normal: np.ndarray) -> np.ndarray:
     """Error vectors (T, 2) [m] from the recorded components along / left of the
-    preview's end tangent (plan minus preview)."""
+    preview's end tangent (plan minus preview): with d the unit vector from the last
+    but one valid preview point to the last, along d + normal (-d_y, d_x); NaN rows
+    where a step has fewer than two valid points."""
     vec = np.full((log.n, 2), np.nan)
-    for i in range(log.n):
-        pts = prev[i][np.all(np.isfinite(prev[i]), axis=1)]
-        if len(pts) < 2:
-            continue
-        d = pts[-1] - pts[-2]
-        d = d / max(float(np.hypot(*d)), 1e-9)
-        vec[i] = along[i] * d + normal[i] * np.array([-d[1], d[0]])
+    ok = np.all(np.isfinite(prev), axis=2)
+    rows = np.flatnonzero(ok.sum(axis=1) >= 2)
+    if rows.size == 0:
+        return vec
+    mask = ok[rows]
+    end = _last_true(mask)
+    mask[np.arange(rows.size), end] = False
+    d = prev[rows, end] - prev[rows, _last_true(mask)]
+    d = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)[:, None]
+    left = np.column_stack([-d[:, 1], d[:, 0]])
+    vec[rows] = np.asarray(along)[rows, None] * d + np.asarray(normal)[rows, None] * left
     return vec
 
 
