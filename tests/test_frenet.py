@@ -109,6 +109,30 @@ def test_project_pose_of_one_pose_equals_the_general_path_bit_for_bit(
         (float(s_ref[0]), float(d_ref[0]), float(e_ref[0]))
 
 
+@settings(max_examples=100, deadline=None)
+@given(frac=st.floats(0.0, 1.0), seed=st.integers(0, 2**31 - 1),
+       shape=st.sampled_from([(400.0, 1.2), (60.0, 4.5)]))
+def test_project_along_equals_hinted_projection_and_gamma_bit_for_bit(
+        frac: float, seed: int, shape: tuple[float, float]) -> None:
+    """The fused kernel (hints, projections, angles) gives exactly what projecting with
+    the tangent hints and then evaluating gamma gives, points that need the global
+    search included (on the 60 m hairpin ~15 % of them: the tangent hint is far off)."""
+    radius, angle = shape
+    path = FrenetPath.cached(_arc(radius, angle, 300))
+    length = radius * angle
+    s_ref = frac * length
+    rng = np.random.default_rng(seed)
+    s = s_ref + rng.uniform(-0.6 * length, 0.6 * length, 25)
+    x, y = path.to_global(s, rng.uniform(-12.0, 12.0, 25))
+    x_ref, y_ref = (float(v) for v in path.to_global(s_ref, 0.4))
+    got_s, got_d, got_g = path.project_along(x, y, x_ref, y_ref, s_ref)
+    g0 = float(path.gamma(s_ref))
+    hints = s_ref + (x - x_ref) * np.cos(g0) + (y - y_ref) * np.sin(g0)
+    want_s, want_d = path.project(x, y, s_hint=hints)
+    assert np.array_equal(got_s, want_s) and np.array_equal(got_d, want_d)
+    assert np.array_equal(got_g, path.gamma(want_s))
+
+
 def test_kinked_polyline_bounded_and_close() -> None:
     # A 3 degree kink at s = 200 m (SUMO junction-like); y positive left.
     ang = np.radians(3.0)

@@ -388,14 +388,24 @@ class FrenetPath:
         Each point's Newton projection starts from s_ref plus its displacement from
         (x_ref, y_ref) along the tangent at s_ref (a good hint hundreds of metres
         out on highway curves, so the k-d tree fallback is rarely needed), and the
-        tangent angle of the result comes from the same compiled pass.
+        tangent angle of the result comes from the same compiled pass (one kernel call
+        for the hints, the projections and the angles: the behaviour calls this every
+        control step; the points it does not converge for go the general way).
         """
         xf = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
         yf = np.ascontiguousarray(y, dtype=np.float64).reshape(-1)
         g0 = float(self.gamma(s_ref))
-        hints = s_ref + (xf - x_ref) * np.cos(g0) + (yf - y_ref) * np.sin(g0)
-        s_out, d_out = self.project(xf, yf, s_hint=hints)
-        return s_out, d_out, self.gamma(s_out)
+        # numpy's cos/sin, as the hints have always used (libm's may differ in the last bit)
+        cos_g0, sin_g0 = float(np.cos(g0)), float(np.sin(g0))
+        s_out, d_out, g_out = np.empty(xf.size), np.empty(xf.size), np.empty(xf.size)
+        need = _project_along_many(self._meta, self._coef, self._knot_xy, xf, yf,
+                                   float(x_ref), float(y_ref), float(s_ref), cos_g0, sin_g0,
+                                   s_out, d_out, g_out)
+        if need.any():
+            s2, d2 = self.project(xf[need], yf[need])
+            s_out[need], d_out[need] = s2, d2
+            g_out[need] = self.gamma(s2)
+        return s_out, d_out, g_out
 
     def project_pose(self, x: np.ndarray | float, y: np.ndarray | float,
                      heading: np.ndarray | float,
@@ -418,6 +428,26 @@ class FrenetPath:
         err = np.asarray(heading, dtype=np.float64) - self.gamma(s)
         err = (err + np.pi) % (2 * np.pi) - np.pi
         return s, d, err
+
+
+@numba.njit(cache=True)
+def _project_along_many(meta: np.ndarray, coef: np.ndarray, knot_xy: np.ndarray,
+                        x: np.ndarray, y: np.ndarray, x_ref: float, y_ref: float,
+                        s_ref: float, cos_g0: float, sin_g0: float, s_out: np.ndarray,
+                        d_out: np.ndarray, g_out: np.ndarray) -> np.ndarray:
+    """Newton projections of (x_i, y_i) from the hints s_ref + (x_i - x_ref) cos g0 +
+    (y_i - y_ref) sin g0, with gamma at the results; returns the (n,) mask of the points
+    that need the global search (no convergence, or > 50 m from the hint)."""
+    need = np.zeros(x.shape[0], dtype=np.bool_)
+    for i in range(x.shape[0]):
+        hint = s_ref + (x[i] - x_ref) * cos_g0 + (y[i] - y_ref) * sin_g0
+        s, d, ok = path_project_local(meta, coef, knot_xy, x[i], y[i], hint)
+        s_out[i] = s
+        d_out[i] = d
+        g_out[i] = path_gamma(meta, coef, s)[0]
+        if not ok or abs(s - hint) > 50.0:
+            need[i] = True
+    return need
 
 
 @numba.njit(cache=True)
