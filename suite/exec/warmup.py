@@ -30,8 +30,9 @@ import pyarrow.parquet  # noqa: F401 - the run's files
 
 import reports.metrics  # noqa: F401
 import suite.rerun.log  # noqa: F401 - rerun
-import sumo_nets  # noqa: F401 - the bundled networks
+import sumo_nets  # the bundled networks, and where SUMO is
 from controllers import registry
+from controllers.path.frenet import FrenetPath
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
 from controllers.protocol import Observation, Obstacles, ScenarioContext, SumoDriverModel
 from suite.exec.quick_exit import exit_without_teardown
@@ -56,8 +57,12 @@ def _exit_without_teardown() -> None:
 
 
 def warm_up(steps: int = 3) -> None:
+    sumo_nets.sumo_home()  # imports the eclipse-sumo package (every run's SUMO start did)
     line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
     offsets_to_polyline(line, np.tile([0.0, 1.0], (3, 1)), line)  # the reference's kernel
+    path = FrenetPath.cached(np.array([[0.0, 0.0], [400.0, 0.0]]))
+    path.gamma(np.array([1.0, 2.0]))  # traffic and recorder projections (20 ms a run else)
+    path.project_along(np.array([30.0]), np.array([3.5]), 0.0, 0.0, 0.0)
     vehicle = VehicleParams()
     reference = np.array([[0.0, 0.0], [400.0, 0.0]])
     state = np.array([10.0, 0.0, 0.0, 20.0, 0.0, 0.0])
