@@ -23,6 +23,7 @@ import math
 from dataclasses import dataclass
 from functools import cached_property
 
+import numba
 import numpy as np
 import numpy.typing as npt
 
@@ -223,21 +224,57 @@ class LaneScene:
         return cache[key]
 
     def _find_nearest(self, rel: int, ahead: bool) -> Neighbour | None:
-        if self.traffic.count == 0:
+        """The nearest vehicle ahead (the smallest ds > 0) or behind
+        (largest ds <= 0) among those in lane ``rel`` by relative lane, by
+        :meth:`intruding` (with ``CUT_IN_HORIZON_S`` ahead, 0 behind) or, ahead, by
+        :meth:`merging`; the first of equals. One compiled pass over the vehicles."""
+        n = self.traffic.count
+        if n == 0:
             return None
-        ds = self.ds_m
+        known = rel in self.lanes
+        centre = self.offset_m(rel) if known else 0.0
+        width = self.lanes[rel].width_m if known else 0.0
+        merging = self.merging(rel) if ahead else np.zeros(n, dtype=bool)
+        fn = self.fn
+        j = _nearest_in_lane(self.rel_lane, fn.y_m, fn.v_y_mps, fn.width_m, self.ds_m,
+                             merging, rel, known, centre, width,
+                             CUT_IN_HORIZON_S if ahead else 0.0, INTRUSION_M, ahead)
+        if j < 0:
+            return None
         half = self._half_lengths_m
-        in_lane = (self.rel_lane == rel) | self.intruding(
-            rel, CUT_IN_HORIZON_S if ahead else 0.0)
-        if ahead:
-            in_lane |= self.merging(rel)
-        mask = in_lane & (ds > 0.0) if ahead else in_lane & (ds <= 0.0)
-        if not np.any(mask):
-            return None
-        idx = np.flatnonzero(mask)
-        j = int(idx[np.argmin(ds[idx])] if ahead else idx[np.argmax(ds[idx])])
+        ds = self.ds_m
         gap = (ds[j] - half[j]) if ahead else (-ds[j] - half[j])
-        return Neighbour(j, float(gap), float(self.fn.v_s_mps[j]))
+        return Neighbour(j, float(gap), float(fn.v_s_mps[j]))
+
+
+@numba.njit(cache=True)
+def _nearest_in_lane(rel_lane: IntArray, y_m: FloatArray, v_y_mps: FloatArray,
+                     width_m: FloatArray, ds_m: FloatArray, merging: BoolArray, rel: int,
+                     lane_known: bool, centre_m: float, lane_width_m: float,
+                     horizon_s: float, intrusion_m: float, ahead: bool) -> int:
+    """Index of the vehicle :meth:`LaneScene._find_nearest` picks, -1 if none: in the
+    lane when rel_lane == rel, or merging, or (lane known) its box's lateral span
+    [y - centre, y - centre + v_y horizon] meets [-reach, reach] with reach =
+    (lane width + its width) / 2 - intrusion; then ds > 0 smallest (ahead) or ds <= 0
+    largest (behind), the first of equals."""
+    best = -1
+    for j in range(rel_lane.shape[0]):
+        inside = rel_lane[j] == rel or merging[j]
+        if not inside and lane_known:
+            reach = 0.5 * (lane_width_m + width_m[j]) - intrusion_m
+            y_now = y_m[j] - centre_m
+            y_then = y_now + v_y_mps[j] * horizon_s
+            lo = y_now if y_now < y_then else y_then
+            hi = y_now if y_now > y_then else y_then
+            inside = hi > -reach and lo < reach
+        if not inside:
+            continue
+        if ahead:
+            if ds_m[j] > 0.0 and (best < 0 or ds_m[j] < ds_m[best]):
+                best = j
+        elif ds_m[j] <= 0.0 and (best < 0 or ds_m[j] > ds_m[best]):
+            best = j
+    return best
 
 
 def relative_lanes(traffic: Traffic, fn: FrenetTraffic, context: LaneContext,

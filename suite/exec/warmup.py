@@ -32,9 +32,17 @@ import reports.metrics  # noqa: F401
 import suite.rerun.log  # noqa: F401 - rerun
 import sumo_nets  # the bundled networks, and where SUMO is
 from controllers import registry
+from controllers.behaviour.decision import EgoShape, LaneBehaviour
+from controllers.behaviour.types import EgoFrenet, LaneContext, LaneSlot, Traffic
 from controllers.path.frenet import FrenetPath
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
-from controllers.protocol import Observation, Obstacles, ScenarioContext, SumoDriverModel
+from controllers.protocol import (
+    Observation,
+    ObstaclePolicy,
+    Obstacles,
+    ScenarioContext,
+    SumoDriverModel,
+)
 from suite.exec.quick_exit import exit_without_teardown
 from suite.road.reference import offsets_to_polyline
 
@@ -56,13 +64,29 @@ def _exit_without_teardown() -> None:
     exit_without_teardown(0)
 
 
+def _warm_behaviour(steps: int) -> None:
+    """The lane behaviour's kernels (traffic projection, lead search): two lanes, a
+    stalled car ahead in the ego's and a car in the other."""
+    path = FrenetPath.cached(np.array([[0.0, 0.0], [400.0, 0.0]]))
+    path.gamma(np.array([1.0, 2.0]))  # the recorder's projections (20 ms a run else)
+    behaviour = LaneBehaviour(path, ObstaclePolicy(), EgoShape(4.8, 1.9), 3.5)
+    lanes = LaneContext({0: LaneSlot(0, 3.5, True, False, offset_m=0.0),
+                         1: LaneSlot(1, 3.5, True, False, offset_m=3.5)}, 0)
+    traffic = Traffic(ids=("stalled", "left"), x_m=np.array([60.0, 20.0]),
+                      y_m=np.array([0.0, 3.5]), heading_rad=np.zeros(2),
+                      speed_mps=np.array([0.0, 22.0]), length_m=np.full(2, 4.8),
+                      width_m=np.full(2, 1.9), lane_index=np.array([0, 1]),
+                      road_id=("", ""), stalled=np.array([True, False]))
+    for k in range(steps):
+        behaviour.decide(EgoFrenet(0.5 * k, 0.0, 0.5 * k, 0.0, 20.0, 0.02 * k), traffic, lanes,
+                         25.0)
+
+
 def warm_up(steps: int = 3) -> None:
     sumo_nets.sumo_home()  # imports the eclipse-sumo package (every run's SUMO start did)
     line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
     offsets_to_polyline(line, np.tile([0.0, 1.0], (3, 1)), line)  # the reference's kernel
-    path = FrenetPath.cached(np.array([[0.0, 0.0], [400.0, 0.0]]))
-    path.gamma(np.array([1.0, 2.0]))  # traffic and recorder projections (20 ms a run else)
-    path.project_along(np.array([30.0]), np.array([3.5]), 0.0, 0.0, 0.0)
+    _warm_behaviour(steps)
     vehicle = VehicleParams()
     reference = np.array([[0.0, 0.0], [400.0, 0.0]])
     state = np.array([10.0, 0.0, 0.0, 20.0, 0.0, 0.0])
