@@ -264,16 +264,19 @@ class SumoWorld:
         if not ids:
             return Traffic.empty()
         rows = [res[vid] for vid in ids]
-        fx = np.array([r[tc.VAR_POSITION][0] for r in rows], dtype=np.float64)
-        fy = np.array([r[tc.VAR_POSITION][1] for r in rows], dtype=np.float64)
-        heading = nav_deg_to_math_rad([r[tc.VAR_ANGLE] for r in rows])
-        length = np.array([r[tc.VAR_LENGTH] for r in rows], dtype=np.float64)
+        pos, ang, spd, lng, wid, lane = (tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED,
+                                         tc.VAR_LENGTH, tc.VAR_WIDTH, tc.VAR_LANE_INDEX)
+        # One pass over the rows into a (n, 7) table (lane indices are small integers,
+        # exact as floats): the same numbers as a comprehension per column.
+        table = np.array([(r[pos][0], r[pos][1], r[ang], r[spd], r[lng], r[wid], r[lane])
+                          for r in rows], dtype=np.float64)
+        fx, fy, length = table[:, 0], table[:, 1], table[:, 4]
+        heading = nav_deg_to_math_rad(table[:, 2])
         return Traffic(
             ids=ids, x_m=fx - 0.5 * length * np.cos(heading),
             y_m=fy - 0.5 * length * np.sin(heading), heading_rad=heading,
-            speed_mps=np.array([r[tc.VAR_SPEED] for r in rows], dtype=np.float64),
-            length_m=length, width_m=np.array([r[tc.VAR_WIDTH] for r in rows], dtype=np.float64),
-            lane_index=np.array([r[tc.VAR_LANE_INDEX] for r in rows], dtype=np.int64),
+            speed_mps=table[:, 3].copy(), length_m=length.copy(), width_m=table[:, 5].copy(),
+            lane_index=table[:, 6].astype(np.int64),
             road_id=tuple(str(r[tc.VAR_ROAD_ID]) for r in rows),
             stalled=np.array([vid.startswith(STALLED_PREFIX) for vid in ids], dtype=bool))
 
