@@ -57,6 +57,12 @@ def nav_deg_to_math_rad(angle_deg: Any) -> Any:
     return np.deg2rad(90.0 - np.asarray(angle_deg, dtype=np.float64))
 
 
+def nav_deg_to_math_rad_scalar(angle_deg: float) -> float:
+    """:func:`nav_deg_to_math_rad` of one angle with math: the same single multiply by
+    pi/180 as numpy's deg2rad (bit-identical), without wrapping a scalar in an array."""
+    return math.radians(90.0 - angle_deg)
+
+
 def math_rad_to_nav_deg(psi_rad: float) -> float:
     return float((90.0 - math.degrees(psi_rad)) % 360.0)
 
@@ -229,7 +235,7 @@ class SumoWorld:
         v = self._ls.vehicle
         x, y = v.getPosition(EGO_ID)
         return WorldEgo(front_x_m=float(x), front_y_m=float(y),
-                        heading_rad=float(nav_deg_to_math_rad(v.getAngle(EGO_ID))),
+                        heading_rad=nav_deg_to_math_rad_scalar(float(v.getAngle(EGO_ID))),
                         speed_mps=float(v.getSpeed(EGO_ID)),
                         accel_mps2=float(v.getAcceleration(EGO_ID)),
                         lane_index=int(v.getLaneIndex(EGO_ID)), road_id=str(v.getRoadID(EGO_ID)),
@@ -253,7 +259,8 @@ class SumoWorld:
             geom = (cum * scale, np.arctan2(seg[:, 1], seg[:, 0]))
             self._lane_geometry[lane_id] = geom
         cum, heading = geom
-        k = int(np.clip(np.searchsorted(cum, pos_m, side="right") - 1, 0, len(heading) - 1))
+        # min/max, not np.clip: the ufunc machinery costs more than the search on a scalar
+        k = min(max(int(np.searchsorted(cum, pos_m, side="right")) - 1, 0), len(heading) - 1)
         return float(heading[k])
 
     def _traffic(self) -> Traffic:
