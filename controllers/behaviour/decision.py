@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 import numpy.typing as npt
 
@@ -361,27 +362,16 @@ class LaneBehaviour:
         if sc.traffic.count == 0 or pol.max_obstacles == 0:
             return np.zeros(0, dtype=np.intp)
         lanes = sc.lanes_occupied() | {plan.lane, plan.origin}
-        ds = sc.ds_m
-        dist = np.hypot(ds, sc.fn.y_m - sc.ego.lat_m)
-        in_lanes = np.zeros(sc.traffic.count, dtype=bool)
-        for r in lanes:
-            in_lanes |= sc.rel_lane == r
         leads = {n.index for r in lanes if (n := sc.lead(r)) is not None}
         if lead >= 0:
             leads.add(lead)
-        in_lanes[list(leads)] = True  # a lead by intrusion or merging, whatever its lane
-        relevant = (dist <= pol.detection_distance_m) & (ds >= -pol.rear_range_m) & in_lanes
-        # A car behind in the lane the ego keeps (or leaves) is its follower's business:
-        # as an ellipse it only pushes the ego forward and, squeezed against the lead's,
-        # sideways out of its lane. Behind the ego only the lane moved into counts.
         home_lane = plan.origin if plan.changing else plan.lane
-        relevant &= ~((sc.rel_lane == home_lane) & (ds < 0.0))
-        if not pol.moving_obstacles:
-            relevant &= sc.traffic.stalled
-        idx = np.flatnonzero(relevant)
-        key = [(0 if i in leads else 1, float(dist[i])) for i in idx]
-        order = [int(idx[k]) for k in sorted(range(len(idx)), key=key.__getitem__)]
-        return np.array(order[: pol.max_obstacles], dtype=np.intp)
+        return _select_obstacles(sc.ds_m, sc.fn.y_m, sc.ego.lat_m, sc.rel_lane,
+                                 np.array(sorted(lanes), dtype=np.int64),
+                                 np.array(sorted(leads), dtype=np.int64), home_lane,
+                                 sc.traffic.stalled, pol.moving_obstacles,
+                                 pol.detection_distance_m, pol.rear_range_m,
+                                 pol.max_obstacles)
 
     def _ellipses(self, sc: LaneScene, order: IntpArray, plan: _Plan, side: int,
                   follow_lead: int) -> Obstacles:
@@ -409,6 +399,43 @@ class LaneBehaviour:
         return Obstacles(s_m=fn.s_m[order].copy(), y_m=y, speed_s_mps=fn.v_s_mps[order].copy(),
                          speed_y_mps=fn.v_y_mps[order].copy(), semi_a_m=semi_a,
                          semi_b_m=semi_b)
+
+
+@numba.njit(cache=True)
+def _select_obstacles(ds_m: npt.NDArray[np.float64], y_m: npt.NDArray[np.float64],
+                      ego_lat_m: float, rel_lane: npt.NDArray[np.int64],
+                      lanes: npt.NDArray[np.int64], leads: npt.NDArray[np.int64],
+                      home_lane: int, stalled: npt.NDArray[np.bool_], moving: bool,
+                      detection_m: float, rear_range_m: float, max_obstacles: int
+                      ) -> IntpArray:
+    """:meth:`LaneBehaviour._select` in one pass: the vehicles within ``detection_m``
+    (distance hypot(ds, y - ego lat) [m]) and at most ``rear_range_m`` behind, in
+    ``lanes`` (relative) or one of ``leads``, not behind the ego in ``home_lane``, stalled
+    ones only unless ``moving``; leads first, then by distance (ties in index order),
+    at most ``max_obstacles``."""
+    n = ds_m.shape[0]
+    is_lead = np.zeros(n, dtype=np.bool_)
+    for k in range(leads.shape[0]):
+        is_lead[leads[k]] = True
+    dist = np.empty(n)
+    relevant = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        dist[i] = math.hypot(ds_m[i], y_m[i] - ego_lat_m)
+        in_lanes = is_lead[i]
+        for k in range(lanes.shape[0]):
+            if rel_lane[i] == lanes[k]:
+                in_lanes = True
+        ok = dist[i] <= detection_m and ds_m[i] >= -rear_range_m and in_lanes
+        if rel_lane[i] == home_lane and ds_m[i] < 0.0:
+            ok = False
+        if not moving and not stalled[i]:
+            ok = False
+        relevant[i] = ok
+    first = np.flatnonzero(relevant & is_lead)
+    second = np.flatnonzero(relevant & ~is_lead)
+    order = np.concatenate((first[np.argsort(dist[first], kind="mergesort")],
+                            second[np.argsort(dist[second], kind="mergesort")]))
+    return order[:max_obstacles].astype(np.intp)
 
 
 def _leave_ego_outside(ds_m: float, dy_m: float, semi_a_m: float, semi_b_m: float,
