@@ -290,11 +290,13 @@ def relative_lanes(traffic: Traffic, fn: FrenetTraffic, context: LaneContext,
     offsets = np.array([context.slots[i].offset_m for i in order], dtype=np.float64)
     geometric = bool(order) and ref_ok and bool(np.all(np.isfinite(offsets)))
     by_road = context.reference_index_by_road
-    for j in range(n):
-        road = traffic.road_id[j]
-        lane = int(traffic.lane_index[j])
-        if road in by_road and lane >= 0:
-            out[j] = lane - by_road[road]
+    # Python ints and lists in the loop: indexing numpy arrays one element at a time
+    # costs more than the work (the loop runs over every vehicle, every step).
+    for j, (road, lane) in enumerate(zip(traffic.road_id, traffic.lane_index.tolist(),
+                                         strict=True)):
+        ref_lane = by_road.get(road)
+        if ref_lane is not None and lane >= 0:
+            out[j] = lane - ref_lane
         elif geometric:
             k = int(np.argmin(np.abs(fn.y_m[j] - offsets)))
             extra = 0.0
