@@ -421,11 +421,14 @@ def _select_obstacles(ds_m: npt.NDArray[np.float64], y_m: npt.NDArray[np.float64
     relevant = np.zeros(n, dtype=np.bool_)
     for i in range(n):
         dist[i] = math.hypot(ds_m[i], y_m[i] - ego_lat_m)
-        in_lanes = is_lead[i]
+        in_lanes = is_lead[i]  # a lead by intrusion or merging, whatever its lane
         for k in range(lanes.shape[0]):
             if rel_lane[i] == lanes[k]:
                 in_lanes = True
         ok = dist[i] <= detection_m and ds_m[i] >= -rear_range_m and in_lanes
+        # A car behind in the lane the ego keeps (or leaves) is its follower's business:
+        # as an ellipse it only pushes the ego forward and, squeezed against the lead's,
+        # sideways out of its lane. Behind the ego only the lane moved into counts.
         if rel_lane[i] == home_lane and ds_m[i] < 0.0:
             ok = False
         if not moving and not stalled[i]:

@@ -1,13 +1,15 @@
 """Imported by the forkserver before it forks scenario processes (see ``executors``).
 
 Importing this module loads every compiled kernel from numba's on-disk cache (or
-compiles it once) by running the two-loop controller for a few steps on a tiny
-problem, and imports the heavy modules a run needs (Rerun, ``pyarrow.parquet``, the XML
-parser of the network reader, the bundled networks), so that each forked scenario
+compiles it once) by running the lane behaviour and the two-loop controller for a few
+steps on a tiny problem (and the reference's and the path's kernels once), and imports
+the heavy modules a run needs (Rerun, ``pyarrow.parquet``, the XML parser of the network
+reader, the bundled networks, the eclipse-sumo package), so that each forked scenario
 process inherits them instead of paying for them again: a catalog pays compilation and
-imports once. Missing one costs every run its import (``scipy.signal`` and its
-dependencies were 0.35 s of each 40 s run until they were preloaded; the metrics no
-longer use it at all, which took 0.35-0.9 s off the preload; docs/performance.md).
+imports once. Missing one costs every run its import or cache load (``scipy.signal``
+was 0.35 s of each 40 s run until it was preloaded, and is no longer used at all; the
+path's ``_gamma_many`` 20 ms); ``tests/test_warmup_coverage.py`` checks that nothing is
+left (docs/performance.md).
 
 In the forkserver itself (not when imported anywhere else) it also makes the server's
 exit quick: the forkserver ends by ``SystemExit`` once its parent is gone, and the
@@ -65,8 +67,8 @@ def _exit_without_teardown() -> None:
 
 
 def _warm_behaviour(steps: int) -> None:
-    """The lane behaviour's kernels (traffic projection, lead search): two lanes, a
-    stalled car ahead in the ego's and a car in the other."""
+    """The lane behaviour's kernels (traffic projection, lead search, obstacle choice):
+    two lanes, a stalled car ahead in the ego's and a car in the other."""
     path = FrenetPath.cached(np.array([[0.0, 0.0], [400.0, 0.0]]))
     path.gamma(np.array([1.0, 2.0]))  # the recorder's projections (20 ms a run else)
     behaviour = LaneBehaviour(path, ObstaclePolicy(), EgoShape(4.8, 1.9), 3.5)
