@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 import numpy as np
 import numpy.typing as npt
 
-if TYPE_CHECKING:  # pandas is imported where frames are read or built: scenario
-    import pandas as pd  # processes write with pyarrow and never pay its import
+if TYPE_CHECKING:  # pandas is imported where frames are read or built (the writer,
+    import pandas as pd  # reports.record.run.write_parquet, goes to pyarrow directly)
 
 FloatColumn = npt.NDArray[np.float64]
 IntColumn = npt.NDArray[np.int64]
