@@ -287,8 +287,9 @@ def relative_lanes(traffic: Traffic, fn: FrenetTraffic, context: LaneContext,
     order = sorted(context.slots)
     ref = context.reference_index
     ref_ok = ref in context.slots and math.isfinite(context.slots[ref].offset_m)
-    offsets = np.array([context.slots[i].offset_m for i in order], dtype=np.float64)
-    geometric = bool(order) and ref_ok and bool(np.all(np.isfinite(offsets)))
+    offset_list = [context.slots[i].offset_m for i in order]
+    geometric = bool(order) and ref_ok and all(math.isfinite(o) for o in offset_list)
+    offsets = np.array(offset_list, dtype=np.float64)
     by_road = context.reference_index_by_road
     # Python ints and lists in the loop: indexing numpy arrays one element at a time
     # costs more than the work (the loop runs over every vehicle, every step).
