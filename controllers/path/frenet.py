@@ -394,7 +394,7 @@ class FrenetPath:
         """
         xf = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
         yf = np.ascontiguousarray(y, dtype=np.float64).reshape(-1)
-        g0 = float(self.gamma(s_ref))
+        g0 = path_gamma(self._meta, self._coef, float(s_ref))[0]  # what gamma() evaluates
         # numpy's cos/sin, as the hints have always used (libm's may differ in the last bit)
         cos_g0, sin_g0 = float(np.cos(g0)), float(np.sin(g0))
         s_out, d_out, g_out = np.empty(xf.size), np.empty(xf.size), np.empty(xf.size)
