@@ -192,11 +192,13 @@ class TraceRecorder:
         cols = self._nb.data
         cols["step"][a:b] = step
         cols["t_s"][a:b] = t_s
+        every = n == traffic.count  # all within the radius: copy, no gather
         for name in ("x_m", "y_m", "heading_rad", "speed_mps", "length_m", "width_m",
                      "lane_index", "stalled"):
-            cols[name][a:b] = getattr(traffic, name)[idx]
+            values = getattr(traffic, name)
+            cols[name][a:b] = values if every else values[idx]
         ids = traffic.ids
-        self._nb_ids.extend(ids if n == traffic.count else [ids[k] for k in idx.tolist()])
+        self._nb_ids.extend(ids if every else [ids[k] for k in idx.tolist()])
 
     def _obstacles(self, i: int, decision: Decision) -> None:
         """The step's obstacle ellipses in the Frenet frame (world frame at finish)."""
