@@ -11,17 +11,19 @@ was 0.35 s of each 40 s run until it was preloaded, and is no longer used at all
 path's ``_gamma_many`` 20 ms); ``tests/test_warmup_coverage.py`` checks that nothing is
 left (docs/performance.md).
 
-In the forkserver itself (not when imported anywhere else) it also makes the server's
-exit quick: the forkserver ends by ``SystemExit`` once its parent is gone, and the
-interpreter's teardown of everything preloaded then took 0.55 s, during which it still
-held the command's stdout and stderr (a pipe reading ``hwyeval run`` saw its end that
-much later). An atexit handler ends it with
+In the forkserver itself (not when imported anywhere else) it freezes the garbage
+collector's view of what the preload made (``gc.freeze``: a run's collections skip it),
+and makes the server's exit quick: the forkserver ends by ``SystemExit`` once its parent
+is gone, and the interpreter's teardown of everything preloaded then took 0.55 s, during
+which it still held the command's stdout and stderr (a pipe reading ``hwyeval run`` saw
+its end that much later). An atexit handler ends it with
 :func:`suite.exec.quick_exit.exit_without_teardown`.
 """
 
 from __future__ import annotations
 
 import atexit
+import gc
 import os
 import sys
 import xml.sax.expatreader  # noqa: F401 - the network reader's parser
@@ -113,3 +115,9 @@ except Exception:  # noqa: BLE001 - a failed warm-up must not take the forkserve
 
 if in_forkserver():
     atexit.register(_exit_without_teardown)
+    # Every object the preload made (~200 000: modules, numba's and numpy's state) goes
+    # to the collector's permanent generation, which scenario processes inherit: their
+    # cyclic collections no longer walk it. One gen-2 collection over it was ~190 ms of
+    # every 40 s run (docs/performance.md); and walking it wrote to every object's
+    # header, copying the forkserver's pages into each process.
+    gc.freeze()
