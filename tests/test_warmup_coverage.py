@@ -92,20 +92,21 @@ def test_a_scenario_after_the_preload_loads_no_kernel(tmp_path: Path) -> None:
 def _freeze_count(conn: Any) -> None:
     import gc
 
-    conn.send(gc.get_freeze_count())
+    conn.send((gc.get_freeze_count(), gc.isenabled()))
     conn.close()
 
 
 def test_scenario_processes_inherit_a_frozen_preload() -> None:
-    """A process forked by a forkserver that preloaded suite.exec.warmup finds the
-    preload's objects frozen (its collections skip them: a gen-2 pass over them was
-    ~190 ms of every 40 s run)."""
+    """A process forked by a forkserver with the preload finds the preload's objects
+    frozen (its collections skip them: a gen-2 pass over them was ~190 ms of every 40 s
+    run) and the collector running (paused while the preload imported)."""
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(list(PRELOAD))
     ours, theirs = ctx.Pipe()
     proc = ctx.Process(target=_freeze_count, args=(theirs,))
     proc.start()
-    frozen = ours.recv()
+    frozen, enabled = ours.recv()
     proc.join(60)
     assert proc.exitcode == 0
     assert frozen > 50_000, f"only {frozen} objects frozen"
+    assert enabled  # paused during the preload (suite.exec.gc_pause), resumed after

@@ -121,3 +121,4 @@ if in_forkserver():
     # every 40 s run (docs/performance.md); and walking it wrote to every object's
     # header, copying the forkserver's pages into each process.
     gc.freeze()
+gc.enable()  # paused by suite.exec.gc_pause, the preload's first module

@@ -16,6 +16,7 @@ a grace period, then SIGKILL.
 
 from __future__ import annotations
 
+import gc
 import multiprocessing as mp
 import os
 import signal
@@ -31,6 +32,7 @@ TERM_GRACE_S = 2.0  # SIGTERM, then this long [s], then SIGKILL
 
 def become_worker() -> None:
     """Set up this scenario process (module doc). Call first thing in the worker."""
+    gc.enable()  # whatever became of the preload (suite.exec.gc_pause pauses it there)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     for sig in (signal.SIGTTOU, signal.SIGTTIN, signal.SIGTSTP):
