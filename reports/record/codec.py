@@ -158,10 +158,11 @@ def decode_dataclass(cls: type[T], data: Any, path: str | Path, key: str = "") -
         raise RecordError(path, key, f"valid {cls.__name__} fields ({exc})", data) from exc
 
 
-def write_json_atomic(path: Path, data: Any) -> None:
-    """Write ``data`` as JSON to ``path`` atomically (a reader never sees half a file)."""
+def write_json_atomic(path: Path, data: Any, *, indent: int | None = 1) -> None:
+    """Write ``data`` as JSON to ``path`` atomically (a reader never sees half a file);
+    ``indent`` None writes it on one line (json's C encoder: 4x faster for bulk data)."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(to_plain(data), indent=1, allow_nan=True))
+    tmp.write_text(json.dumps(to_plain(data), indent=indent, allow_nan=True))
     tmp.replace(path)
 
 

@@ -121,15 +121,18 @@ def write_run(record: RunRecord, run_dir: Path, *, run_json: bool = True) -> Non
     """Write every file of ``record`` into ``run_dir`` (run.json last, atomically; not at
     all with ``run_json=False``, for a writer that adds files first)."""
     run_dir.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(run_dir / ROAD_JSON, record.road.as_plain())
+    # one line: 93 KB of lane polylines, read by the reports, not by eye
+    write_json_atomic(run_dir / ROAD_JSON, record.road.as_plain(), indent=None)
     write_parquet(record.trace.table_columns(), run_dir / TRACE)
     write_parquet(dict(record.neighbours.columns()), run_dir / NEIGHBOURS)
     if record.series is not None:
         write_parquet(dict(record.series.columns()), run_dir / SERIES)
     arr = record.arrays
-    np.savez_compressed(run_dir / CONTROLLER_ARRAYS, plan_xy_m=arr.plan_xy_m,
-                        preview_xy_m=arr.preview_xy_m, ellipses=arr.ellipses,
-                        detection_radius_m=np.array(arr.detection_radius_m))
+    # Stored, not deflated: the plans' float64 coordinates deflate by only ~20 % (1.0 MB
+    # -> 0.82 MB for a 40 s run), for 33 ms of every run's 1.1 s.
+    np.savez(run_dir / CONTROLLER_ARRAYS, plan_xy_m=arr.plan_xy_m,
+             preview_xy_m=arr.preview_xy_m, ellipses=arr.ellipses,
+             detection_radius_m=np.array(arr.detection_radius_m))
     if record.outcome.error:
         (run_dir / TRACEBACK).write_text(record.outcome.error)
     if run_json:
