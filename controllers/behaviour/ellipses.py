@@ -52,12 +52,18 @@ class FrenetVehicle:
     speed_y_mps: float = 0.0
 
 
+def lateral_margin_m(policy: ObstaclePolicy) -> float:
+    """b0 - b [m]: the policy's lateral margin, at least 0.05 m (a strictly positive
+    margin keeps A0 = a / sqrt(1 - (b/b0)²) finite)."""
+    return max(policy.margin_lat_m, 0.05)
+
+
 def ellipse_semi_axes(obstacle_length_m: float, obstacle_width_m: float, ego_length_m: float,
                       ego_width_m: float, policy: ObstaclePolicy) -> tuple[float, float]:
     """(A, B) [m] as in the module docstring: the ellipse contains the box-sum rectangle."""
     a = 0.5 * obstacle_length_m + 0.5 * ego_length_m
     b = 0.5 * obstacle_width_m + 0.5 * ego_width_m
-    b0 = b + max(policy.margin_lat_m, 0.05)  # a strictly positive margin keeps A0 finite
+    b0 = b + lateral_margin_m(policy)
     a0 = a / np.sqrt(1.0 - (b / b0) ** 2)
     return float(a0 + policy.margin_long_m), float(b0 + policy.offset_m)
 
@@ -67,9 +73,9 @@ def box_half_length_m(semi_a_m: np.ndarray, semi_b_m: np.ndarray,
     """The box-sum half length a [m] (half the obstacle's plus half the ego's length)
     inside ellipses of semi-axes (A, B) built by :func:`ellipse_semi_axes` with
     ``policy``: the inverse of its A = a / sqrt(1 - (b/b0)²) + margin_long, with
-    b0 = B - offset and b = b0 - max(margin_lat, 0.05). Shapes as the inputs."""
+    b0 = B - offset and b = b0 - :func:`lateral_margin_m`. Shapes as the inputs."""
     b0 = np.asarray(semi_b_m, dtype=np.float64) - policy.offset_m
-    b = b0 - max(policy.margin_lat_m, 0.05)
+    b = b0 - lateral_margin_m(policy)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.clip(np.where(b0 > 0.0, b / b0, 0.0), 0.0, 1.0)
     return (np.asarray(semi_a_m, dtype=np.float64) - policy.margin_long_m) * np.sqrt(
