@@ -171,6 +171,22 @@ def test_recording_ids_are_unique_per_run_and_the_application_groups_a_scenario(
     assert RrdReader(a).blueprints(), "default blueprint must be embedded"
 
 
+def test_the_run_identity_is_a_recording_property(tmp_path: Path) -> None:
+    """The viewer's recording list shows each run's catalog, scenario, seed, controller,
+    status and version, as one-element string columns of ``/__properties/run``."""
+    run_dir = make_run_dir(tmp_path, seed=7, steps=40)
+    rrd = write_rrd(run_dir, catalog_name="nightly")
+    record = load_run(run_dir)
+    chunks = [c for c in read_chunks(rrd) if c.entity_path == "/__properties/run"]
+    assert len(chunks) == 1 and chunks[0].is_static
+    rb = chunks[0].to_record_batch()
+    got = {name: rb.column(name).to_pylist()[0] for name in rb.schema.names
+           if not name.startswith("rerun.")}
+    assert got == {"catalog": ["nightly"], "scenario": ["stalled_pass"], "seed": ["7"],
+                   "controller": [record.info.controller], "status": [record.status],
+                   "hwyeval_version": [record.info.hwyeval_version]}
+
+
 def test_verdict_ttc_and_criteria_limits_are_logged(tmp_path: Path) -> None:
     run_dir = make_run_dir(tmp_path, seed=3, steps=120, criteria={"min_gap_m": 2.0})
     chunks = read_chunks(write_rrd(run_dir))

@@ -18,8 +18,8 @@ from typing import Any
 
 __all__ = ["PRELOAD", "prestart_forkserver", "start_and_wait", "stop_forkserver", "warm_up"]
 
-PRELOAD = ["suite.exec.gc_pause", "numpy", "pandas", "numba", "libsumo", "suite.run.runner",
-           "suite.catalog", "controllers.builtin", "suite.exec.warmup"]
+PRELOAD = ["suite.exec.gc_pause", "suite.exec.arrow_without_pandas", "numba", "libsumo",
+           "suite.run.runner", "suite.catalog", "controllers.builtin", "suite.exec.warmup"]
 
 _prestarted: dict[str, threading.Thread] = {}  # start method -> the warm-up thread
 

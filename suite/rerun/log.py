@@ -140,9 +140,16 @@ def _send_identity(rec: rr.RecordingStream, record: RunRecord, catalog: str) -> 
                             f"{_catalog_name(catalog) or 'no catalog'}")
     rec.send_recording_start_time_nanos(time.time_ns())
     rec.send_property("run", rr.AnyValues(
-        catalog=_catalog_name(catalog), scenario=info.scenario, seed=str(info.seed),
-        controller=info.controller, status=record.status,
-        hwyeval_version=info.hwyeval_version))
+        catalog=_text(_catalog_name(catalog)), scenario=_text(info.scenario),
+        seed=_text(str(info.seed)), controller=_text(info.controller),
+        status=_text(record.status), hwyeval_version=_text(info.hwyeval_version)))
+
+
+def _text(value: str) -> np.ndarray:
+    """``value`` as a one-element numpy string array, the form Rerun's AnyValues takes
+    without pyarrow's ``pa.scalar``: that call imports pandas (0.25 s), which scenario
+    processes run without (suite.exec.arrow_without_pandas)."""
+    return np.array([value], dtype=np.str_)
 
 
 def log_record(record: RunRecord, out: Path, *, catalog_name: str | None = None,
