@@ -17,13 +17,16 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
 from controllers.behaviour.types import ObstaclePolicy, Obstacles
-from controllers.path.frenet import FrenetPath
-from controllers.plant.vehicle_model import VehicleParams
+
+if TYPE_CHECKING:  # numba modules: the registry (and the catalog check in the command's
+    # parent process) import this module, and need neither
+    from controllers.path.frenet import FrenetPath
+    from controllers.plant.vehicle_model import VehicleParams
 
 __all__ = ["Command", "ConfigError", "Controller", "Observation", "ObstaclePolicy",
            "Obstacles", "ScenarioContext", "StepDiagnostics", "SumoDriverModel"]
@@ -65,6 +68,8 @@ class ScenarioContext:
 
     def reference_path(self) -> FrenetPath:
         """The Frenet path of the reference (cached: the loop and the controller share it)."""
+        from controllers.path.frenet import FrenetPath
+
         return FrenetPath.cached(np.asarray(self.reference_xy_m, dtype=np.float64),
                                  smoothing_m=self.reference_smoothing_m)
 

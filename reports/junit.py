@@ -38,11 +38,9 @@ def _time(run: RunEntry) -> str:
 
 
 def failure_line(failure: Failure) -> str:
-    """``metric=value>limit`` and where it was violated (or that it is an aggregate)."""
-    if failure.step is None:
-        return f"{failure.text} (whole run)"
-    when = f"t={failure.t_s:.2f} s, " if failure.t_s is not None else ""
-    return f"{failure.text} ({when}step {failure.step})"
+    """``metric=value>limit`` and where it was violated (or that it is an aggregate):
+    :attr:`reports.record.Failure.line`."""
+    return failure.line
 
 
 def _safe_name(text: str) -> str:

@@ -69,6 +69,14 @@ class Failure:
         op = ">" if self.bound == "max" else "<"
         return f"{self.metric}={fmt_value(self.value)}{op}{fmt_value(self.limit)}"
 
+    @property
+    def line(self) -> str:
+        """:attr:`text` and where it was violated (or that it is an aggregate)."""
+        if self.step is None:
+            return f"{self.text} (whole run)"
+        when = f"t={self.t_s:.2f} s, " if self.t_s is not None else ""
+        return f"{self.text} ({when}step {self.step})"
+
 
 @dataclass(frozen=True)
 class Verdict:

@@ -21,7 +21,6 @@ from collections.abc import Sequence
 from types import TracebackType
 from typing import Any
 
-from reports.junit import failure_line
 from reports.record import RunRecord
 from suite.cli.common import Output
 
@@ -43,7 +42,7 @@ def reason(record: RunRecord) -> str:
     if verdict is None:
         return "not judged"
     if verdict.failures:
-        shown = [failure_line(f) for f in verdict.failures[:MAX_REASONS]]
+        shown = [f.line for f in verdict.failures[:MAX_REASONS]]
         more = len(verdict.failures) - MAX_REASONS
         return "; ".join(shown) + (f" (+{more} more)" if more > 0 else "")
     gap, progress = verdict.value("min_gap_m"), verdict.value("progress_m")

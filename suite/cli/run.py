@@ -46,7 +46,7 @@ def build_jobs(scenarios: list[Any], out: Path, catalog_name: str, no_log: bool,
     from suite.exec.budget import run_budget_s
     from suite.exec.executors import RunJob
     from suite.run.info import file_sha256, scenario_content_sha256
-    from suite.run.runner import RunOptions
+    from suite.run.options import RunOptions
 
     net_hashes: dict[Path, str] = {}
     jobs = []

@@ -13,10 +13,8 @@ import traceback
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
-from controllers import registry
-from controllers.plant.vehicle_model import VehicleParams
 from reports.record import (
     ControllerArrays,
     NeighbourColumns,
@@ -30,7 +28,10 @@ from reports.record.run import write_run_atomic
 from suite.catalog import Scenario
 from suite.exec.signals import StopRequest
 from suite.run.info import scenario_info
-from suite.run.runner import RunOptions, judge_record, run_scenario
+from suite.run.options import RunOptions
+
+if TYPE_CHECKING:
+    from controllers import registry
 
 __all__ = ["Executor", "OnDone", "RunJob", "read_result", "record_in_memory", "run_job",
            "write_failure"]
@@ -78,6 +79,9 @@ def run_job(job: RunJob) -> RunRecord:
     """Worker entry point: load the job's plug-ins, run its scenario (``run_scenario``
     never raises; a plug-in that fails to import here raises, and is recorded as the
     run's error by the caller)."""
+    from controllers import registry
+    from suite.run.runner import run_scenario
+
     registry.load_plugin_modules(job.plugins)
     return run_scenario(job.scenario, job.out_dir, job.options)
 
@@ -86,6 +90,9 @@ def record_in_memory(job: RunJob, end: str, message: str) -> RunRecord:
     """A fresh, judged record of a run that did not finish (``end`` 'error' or
     'timeout'): the job's identity and controller, no trace, NaN metrics; nothing of an
     older run of it. Not written."""
+    from controllers.plant.vehicle_model import VehicleParams
+    from suite.run.runner import judge_record
+
     sc = job.scenario
     info = scenario_info(sc, job.options.catalog_name, VehicleParams(friction_coeff=sc.friction),
                          content_sha256=job.options.content_sha256)

@@ -7,12 +7,14 @@ import hashlib
 import json
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from controllers.plant.vehicle_model import VehicleParams
 from reports.record import EgoBox, RunInfo
 from suite import __version__
 from suite.catalog import Scenario
+
+if TYPE_CHECKING:  # the plant's module imports numba; the parent process only builds jobs
+    from controllers.plant.vehicle_model import VehicleParams
 
 CONTENT_KEY = "content_sha256"  # key of RunInfo.scenario_spec holding the content hash
 # Fields of Scenario.as_dict() that say where things are or how long we may wait, not

@@ -58,32 +58,12 @@ from suite.run.dynamics import EgoDynamics, PlantDynamics, SumoDrivenDynamics
 from suite.run.ego import EgoProjector
 from suite.run.info import scenario_info
 from suite.run.loop import Stages, run_loop
+from suite.run.options import RunOptions
 from suite.run.recorder import TraceRecorder
 from suite.run.safety import SafetyMonitor
 from suite.run.stop import ScenarioTimeout, StandardStop
 from suite.world.protocol import WorldSummary
 from suite.world.sumo import SumoWorld
-
-
-@dataclass(frozen=True)
-class RunOptions:
-    """How to run: Rerun log on/off, the catalog's name (for logs), the wall-clock budget
-    ``timeout_s`` [s] (None: none), and the scenario's content hash
-    (:func:`suite.run.info.scenario_content_sha256`, '' if not computed) to record."""
-
-    write_rrd: bool = True
-    catalog_name: str = ""
-    timeout_s: float | None = None
-    content_sha256: str = ""
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.write_rrd, bool):
-            raise TypeError(f"RunOptions.write_rrd: expected a bool, got {self.write_rrd!r}")
-        if self.timeout_s is not None and (
-                isinstance(self.timeout_s, bool) or not isinstance(self.timeout_s, int | float)
-                or not math.isfinite(self.timeout_s) or self.timeout_s <= 0):
-            raise ValueError(f"RunOptions.timeout_s: expected a finite number of seconds > 0 "
-                             f"or None, got {self.timeout_s!r}")
 
 
 class SumoDrivesEgo:
