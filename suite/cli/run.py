@@ -20,6 +20,7 @@ import argparse
 import os
 import shlex
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -117,6 +118,16 @@ def _mode(args: argparse.Namespace) -> str:
     return "resume" if args.resume else "overwrite" if args.overwrite else "fresh"
 
 
+def _import_reports() -> None:
+    """Import what the reports need (pandas, the HTML pages: 0.3-0.5 s) while the runs
+    go on, so the command does not wait for it after the last run; a failure here is
+    left for :func:`_write_reports` to meet and report."""
+    try:
+        import reports.write  # noqa: F401
+    except Exception:  # noqa: BLE001, S110 - _write_reports imports it again and says why
+        pass
+
+
 def _write_reports(out: Path) -> Any:
     """The reports of ``out``; None (and the reason on stderr) if they cannot be
     written: the run directories are complete, ``hwyeval report`` can retry."""
@@ -196,6 +207,9 @@ def _run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
             out_text.line(WARMUP_NOTE.format(n=min(workers, len(todo.to_run))))
         t0 = time.perf_counter()
         warm.used = bool(todo.to_run)
+        # The parent idles while workers run; the reports' imports can happen then.
+        threading.Thread(target=_import_reports, name="hwyeval-import-reports",
+                         daemon=True).start()
         with RunProgress(out_text, len(todo.to_run), workers, sys.stdout.isatty()) as progress:
             results = executor.run(list(todo.to_run), progress.finished, stop)
         records = [*todo.kept, *results]
