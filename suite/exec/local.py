@@ -85,8 +85,9 @@ class LocalExecutor:
         if not pending or not self._warm_up(stop):
             self._after(stop)
             return results
+        ended: list[_Running] = []  # processes that ended, their records not read yet
         try:
-            while (pending or running) and not stop.requested:
+            while (pending or running or ended) and not stop.requested:
                 while pending and len(running) < self.jobs and not stop.requested:
                     job = pending.popleft()
                     started = self._start(job)
@@ -94,13 +95,18 @@ class LocalExecutor:
                         done(started)
                     else:
                         running[started.proc.sentinel] = started
+                # Read the ended runs' records only now: the next scenario processes
+                # start meanwhile instead of after it (15-30 ms of every run).
+                while ended:
+                    done(self._finish(ended.pop(0), None))
                 if not running:
                     continue
                 for sentinel in mp.connection.wait(list(running), timeout=POLL_S):
-                    item = running.pop(sentinel)
-                    done(self._finish(item, None))
+                    ended.append(running.pop(sentinel))
                 self._kill_overdue(running, done)
         finally:
+            for item in ended:  # finished and published before the stop: kept
+                done(self._finish(item, None))
             if running:  # a stop request, or the parent itself failed: no orphan
                 self._abandon(list(running.values()), done)
             self._after(stop)
