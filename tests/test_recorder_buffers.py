@@ -14,7 +14,7 @@ from controllers.behaviour.types import Decision, Obstacles, Traffic
 from controllers.path.frenet import FrenetPath
 from controllers.protocol import Command, StepDiagnostics
 from suite.run.ego import EgoState
-from suite.run.recorder import StepTiming, TraceRecorder, _Columns
+from suite.run.recorder import StepTiming, TraceRecorder, _append_within, _Columns
 from suite.run.safety import SafetySample
 
 PATH = FrenetPath.from_polyline(np.column_stack([np.linspace(0.0, 900.0, 200),
@@ -87,3 +87,51 @@ def test_columns_grow_and_keep_their_rows() -> None:
     assert cols.head("b")[-1] == pytest.approx(9.25)
     with pytest.raises(ValueError):
         _Columns({"a": np.int64}, 0)
+
+
+def test_the_neighbour_kernel_selects_as_numpy_does() -> None:
+    """``_append_within`` keeps the vehicles numpy's ``dx*dx + dy*dy <= r²`` keeps, on
+    the circle itself too, in traffic order, and writes their rows after ``a``."""
+    rng = np.random.default_rng(11)
+    for trial in range(200):
+        n = int(rng.integers(1, 60))
+        r = float(rng.uniform(1.0, 200.0))
+        ex, ey = rng.uniform(-500.0, 500.0, 2)
+        ang = rng.uniform(-math.pi, math.pi, n)
+        rad = rng.uniform(0.0, 2.0 * r, n)
+        rad[rng.random(n) < 0.3] = r  # on the circle (up to rounding of the angle)
+        x, y = ex + rad * np.cos(ang), ey + rad * np.sin(ang)
+        if trial % 5 == 0:
+            x[0], y[0] = ex + r, ey  # exactly on it
+        f = [rng.normal(size=n) for _ in range(4)]
+        lane = rng.integers(-1, 4, n)
+        stalled = rng.random(n) < 0.5
+        a = int(rng.integers(0, 5))
+        out_f = [np.full(a + n, np.nan) for _ in range(7)]
+        out_i = [np.full(a + n, -9, dtype=np.int64) for _ in range(2)]
+        out_b = np.zeros(a + n, dtype=np.bool_)
+        picked = np.empty(n, dtype=np.int64)
+        got = _append_within(3, 0.06, ex, ey, r * r, x, y, *f, lane, stalled, a, out_i[0],
+                             out_f[0], out_f[1], out_f[2], out_f[3], out_f[4], out_f[5],
+                             out_f[6], out_i[1], out_b, picked)
+        dx, dy = x - ex, y - ey
+        idx = np.flatnonzero(dx * dx + dy * dy <= r * r)
+        assert got == idx.size
+        np.testing.assert_array_equal(picked[:got], idx)
+        rows = slice(a, a + got)
+        assert np.all(out_i[0][rows] == 3) and np.all(out_f[0][rows] == 0.06)
+        for column, source in zip(out_f[1:], (x, y, *f), strict=True):
+            np.testing.assert_array_equal(column[rows], source[idx])
+        np.testing.assert_array_equal(out_i[1][rows], lane[idx])
+        np.testing.assert_array_equal(out_b[rows], stalled[idx])
+        assert np.all(np.isnan(out_f[1][:a])) and np.all(np.isnan(out_f[1][a + got:]))
+
+
+def test_columns_trim_keeps_the_filled_rows() -> None:
+    cols = _Columns({"a": np.int64}, 4)
+    start = cols.reserve(5)
+    cols.data["a"][start:start + 2] = [7, 8]
+    cols.trim(start + 2)
+    np.testing.assert_array_equal(cols.head("a"), [7, 8])
+    with pytest.raises(ValueError):
+        cols.trim(3)

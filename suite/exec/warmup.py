@@ -49,6 +49,7 @@ from controllers.protocol import (
 )
 from suite.exec.quick_exit import exit_without_teardown
 from suite.road.reference import offsets_to_polyline
+from suite.run import recorder
 
 
 def in_forkserver() -> bool:
@@ -91,6 +92,7 @@ def warm_up(steps: int = 3) -> None:
     line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
     offsets_to_polyline(line, np.tile([0.0, 1.0], (3, 1)), line)  # the reference's kernel
     _warm_behaviour(steps)
+    recorder.load_kernels()  # the neighbour rows
     vehicle = VehicleParams()
     reference = np.array([[0.0, 0.0], [400.0, 0.0]])
     state = np.array([10.0, 0.0, 0.0, 20.0, 0.0, 0.0])
