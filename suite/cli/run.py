@@ -121,8 +121,12 @@ def _mode(args: argparse.Namespace) -> str:
 def _import_reports() -> None:
     """Import what the reports need (pandas, the HTML pages: 0.3-0.5 s) while the runs
     go on, so the command does not wait for it after the last run; a failure here is
-    left for :func:`_write_reports` to meet and report."""
+    left for :func:`_write_reports` to meet and report. It waits for the workers'
+    warm-up first: the first run waits for that preload, which must have the machine."""
+    from suite.exec.forkserver import wait_for_warm_ups
+
     try:
+        wait_for_warm_ups()
         import reports.write  # noqa: F401
     except Exception:  # noqa: BLE001, S110 - _write_reports imports it again and says why
         pass

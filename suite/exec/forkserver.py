@@ -16,7 +16,8 @@ import signal
 import threading
 from typing import Any
 
-__all__ = ["PRELOAD", "prestart_forkserver", "start_and_wait", "stop_forkserver", "warm_up"]
+__all__ = ["PRELOAD", "prestart_forkserver", "start_and_wait", "stop_forkserver",
+           "wait_for_warm_ups", "warm_up"]
 
 PRELOAD = ["suite.exec.gc_pause", "suite.exec.arrow_without_pandas", "numba", "libsumo",
            "suite.run.runner", "suite.catalog", "controllers.builtin", "suite.exec.warmup"]
@@ -52,6 +53,12 @@ def warm_up(start_method: str) -> threading.Thread:
         thread.start()
         _prestarted[start_method] = thread
     return thread
+
+
+def wait_for_warm_ups(timeout_s: float | None = None) -> None:
+    """Wait for the warm-ups started in this process (none: return at once)."""
+    for thread in list(_prestarted.values()):
+        thread.join(timeout_s)
 
 
 def prestart_forkserver(start_method: str = "forkserver") -> bool:
