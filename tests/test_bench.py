@@ -12,6 +12,7 @@ import pytest
 from suite.bench import TARGETS, summary_lines, targets
 from suite.bench.catalogs import MATRIX_CATALOG, TARGET_CATALOG, with_defaults
 from suite.bench.command import CommandTiming, RunFigures, StepStats, run_command
+from suite.bench.floor import FloorRun, bound, floor_study
 from suite.bench.multirate import _Frame, extrapolation_errors
 from suite.catalog import load_catalog
 
@@ -138,3 +139,39 @@ def test_a_real_command_is_timed(tmp_path: Path) -> None:
     assert st.n == 200 and 0.0 < st.p50_us <= st.p99_us <= st.max_us
     with pytest.raises(FileExistsError):
         run_command(catalog, tmp_path / "out", jobs=1, log=False)
+
+
+def test_floor_bound_known_answers() -> None:
+    """Two measured runs with 0.5 and 0.7 s of glue (mean 0.6 s) bound a 4-run, 160 s
+    command of 6.4 s to 6.4 - 4 x 0.6 = 4.0 s: x40 real time, glue 37.5 % of it."""
+    runs = [FloorRun("a", "pass", 1.0, 0.8, 0.2, 0.1), FloorRun("b", "pass", 1.2, 1.0, 0.2, 0.1)]
+    assert [r.glue_s for r in runs] == pytest.approx([0.5, 0.7])
+    floor = {"runs": [{**r.__dict__, "glue_s": r.glue_s} for r in runs]}
+    command = {"wall_s": 6.4, "sim_s": 160.0, "runs": [{}] * 4}
+    got = bound(floor, command)
+    assert got["wall_s"] == pytest.approx(4.0)
+    assert got["realtime_factor"] == pytest.approx(40.0)
+    assert got["glue_share"] == pytest.approx(2.4 / 6.4)
+    with pytest.raises(ValueError):
+        FloorRun("c", "pass", 1.0, 0.5, 0.4, 0.2)  # kernel + SUMO beyond the loop
+    with pytest.raises(ValueError):
+        bound(floor, {"wall_s": 2.0, "sim_s": 160.0, "runs": [{}] * 4})
+
+
+@pytest.mark.sumo
+def test_the_floor_study_times_real_runs(tmp_path: Path) -> None:
+    catalog = tmp_path / "c.toml"
+    catalog.write_text(TARGET_CATALOG.replace("duration_s = 40.0", "duration_s = 2.0")
+                       .replace('"traffic.seed" = [3, 4, 5, 6]', '"traffic.seed" = [3, 4]'))
+    floor = floor_study(catalog, tmp_path / "out")
+    assert floor["third_party_import_s"] > 0.0
+    assert [r["scenario"] for r in floor["runs"]] == ["target_stall_3lane_2400__seed3",
+                                                      "target_stall_3lane_2400__seed4"]
+    for r in floor["runs"]:
+        assert r["status"] in ("pass", "fail")
+        # every timer ran, and each part fits in the one around it (FloorRun checks it)
+        assert r["kernel_s"] > 0.0 and r["sumo_s"] > 0.0 and r["glue_s"] > 0.0
+        assert r["kernel_s"] + r["sumo_s"] + r["glue_s"] == pytest.approx(r["loop_s"])
+        assert r["loop_s"] < r["run_s"]
+    with pytest.raises(FileExistsError):
+        floor_study(catalog, tmp_path / "out")

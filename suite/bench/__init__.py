@@ -12,7 +12,10 @@ Parts (each a dict of the returned figures, ready for JSON):
    variance ratios, raw and per-update minimum over repeats (skipped without CasADi);
 3. ``extrapolation``: the multi-rate world's extrapolation error against SUMO at the
    control rate (:mod:`suite.bench.multirate`);
-4. ``commands``: whole ``hwyeval run`` commands in fresh processes
+4. ``floor``: the target catalog's runs with timers around the compiled C/GMRES kernel
+   and SUMO's step, and the third-party imports alone (:mod:`suite.bench.floor`): what
+   the target command would take with no Python between them (the 50x target's floor);
+5. ``commands``: whole ``hwyeval run`` commands in fresh processes
    (:mod:`suite.bench.command`) on the fixed catalogs of :mod:`suite.bench.catalogs`:
    the target catalog with logs at ``--jobs 1`` (the 50x target), without logs, with
    logs at ``--jobs 2``; the 12-scenario matrix with logs at ``--jobs 1``: real-time
@@ -99,6 +102,10 @@ def _commands(tmp: Path) -> dict[str, Any]:
         runs[label] = run_command(catalog, tmp / f"out_{label}", jobs=jobs, log=log)
     one, two = runs["target_jobs1_log"], runs["target_jobs2_log"]
     out: dict[str, Any] = {k: v.as_dict() for k, v in runs.items()}
+    from suite.bench.floor import bound, floor_study
+
+    floor = floor_study(target, tmp / "out_floor")
+    out["floor"] = {**floor, "bound": bound(floor, out["target_jobs1_log"])}
     out["jobs2_over_jobs1"] = {"whole_command": one.wall_s / two.wall_s,
                                "scenario_phase": (one.runs_span_s / two.runs_span_s
                                                   if two.runs_span_s > 0 else float("nan"))}
@@ -241,11 +248,31 @@ def _command_lines(cmd: dict[str, Any] | None) -> list[str]:
     m = cmd["matrix_jobs1_log"]
     lines.append("matrix real-time factors per run (wall of the run, build to run.json): "
                  + ", ".join(f"{r['scenario']} x{r['realtime_factor']:.0f}" for r in m["runs"]))
+    lines += _floor_lines(cmd.get("floor"), cmd["target_jobs1_log"])
     j = cmd["jobs2_over_jobs1"]
     lines.append(f"--jobs 2 / --jobs 1: x{j['whole_command']:.2f} whole command, "
                  f"x{j['scenario_phase']:.2f} scenario phase; logging on / off: "
                  f"x{cmd['logging_overhead']:.2f}")
     return lines
+
+
+def _floor_lines(floor: dict[str, Any] | None, target: dict[str, Any]) -> list[str]:
+    if not floor:
+        return []
+    runs = floor["runs"]
+    n = len(runs)
+
+    def mean(key: str) -> float:
+        return float(sum(r[key] for r in runs) / n)
+
+    b = floor["bound"]
+    return [f"floor: third-party imports {floor['third_party_import_s']:.2f} s; per target run "
+            f"{mean('run_s'):.2f} s, of which the loop {mean('loop_s'):.2f} s = C/GMRES kernel "
+            f"{mean('kernel_s'):.3f} s + SUMO's step {mean('sumo_s'):.3f} s + the Python "
+            f"between them {mean('glue_s'):.2f} s; target_jobs1_log ({target['wall_s']:.2f} s) "
+            f"without that Python: {b['wall_s']:.2f} s -> x{b['realtime_factor']:.1f} real "
+            f"time (the 50x target's floor; the Python is {100 * b['glue_share']:.0f} % of "
+            f"the command)"]
 
 
 def to_json(figures: dict[str, Any]) -> str:
