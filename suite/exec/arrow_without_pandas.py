@@ -8,7 +8,10 @@ Why it is needed: pyarrow imports pandas, when it is installed, the first time
 ``pa.array`` is given a numpy array (its check whether the array is a pandas object),
 and Rerun's logging makes that call. Importing this module makes that first call with
 the import of pandas refused (an :class:`ImportError`, which pyarrow catches), so later
-calls go straight on. Nothing is lost: code in the same process that imports pandas
+numpy conversions go straight on. A Python object (``pa.scalar``, ``pa.array`` of a list)
+still tries ``import pandas`` every time until it succeeds: what scenario processes log
+goes as numpy arrays (``suite.rerun.log._text``), and ``tests/test_warmup_coverage.py``
+fails if a run imports pandas. Nothing is lost: code in the same process that imports pandas
 itself afterwards (a user's plugin, say) still converts both ways
 (``Table.to_pandas``, ``pa.array`` of a Series; ``tests/test_arrow_without_pandas.py``).
 """
