@@ -22,6 +22,7 @@ from reports.metrics.evaluate import REQUIRED_METRICS
 from reports.metrics.timing import loop_times_s
 from reports.pool import TimePool
 from reports.record import (
+    RRD,
     SERIES,
     TRACE,
     TRACEBACK,
@@ -127,6 +128,17 @@ class RunEntry:
     @property
     def failures(self) -> tuple[Failure, ...]:
         return self.verdict.failures if self.verdict is not None else ()
+
+    @property
+    def log_error(self) -> str:
+        """Why writing the run's Rerun log failed (its traceback), '' when it did not."""
+        outcome = self.outcome
+        return (outcome.log_error or "") if outcome is not None else ""
+
+    @property
+    def has_log(self) -> bool:
+        """Whether the run directory holds its Rerun log (``run.rrd``)."""
+        return (self.run_dir / RRD).is_file()
 
     def value(self, name: str) -> float:
         """The stored value of metric ``name`` (NaN if absent)."""

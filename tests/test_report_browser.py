@@ -12,6 +12,7 @@ import synthetic_runs as sr
 from browser import check_tick_labels, chromium, console_errors, needs_chromium, screenshot
 
 from reports import write_reports
+from suite.rerun.log import write_rrd
 
 pytestmark = needs_chromium
 
@@ -32,6 +33,7 @@ def test_the_failures_list_is_the_first_thing_under_the_header(driver: Any,
     from selenium.webdriver.common.by import By
 
     out = sr.make_catalog(tmp_path / "catalog")
+    write_rrd(out / "sharp_curve__ctrl_a")  # the other synthetic runs have no log
     index = write_reports(out).report_html
     text = index.read_text()
     assert "http://" not in text and "https://" not in text
@@ -56,6 +58,9 @@ def test_the_failures_list_is_the_first_thing_under_the_header(driver: Any,
     screenshot(driver, "report_index")
     rrd = fail.find_element(By.LINK_TEXT, "run.rrd").get_attribute("href")
     assert rrd.endswith("/sharp_curve__ctrl_a/run.rrd")
+    # a run without a log has a badge, not a dead link
+    assert all(r.find_elements(By.CSS_SELECTOR, ".badge.nolog") for r in rows
+               if "sharp_curve" not in r.text)
     # the variant columns and the run table
     matrix = driver.find_element(By.ID, "scenario-matrix")
     assert {c.text for c in matrix.find_elements(By.CSS_SELECTOR, "td.cell")} == {

@@ -24,6 +24,18 @@ def badge(status: str) -> str:
     return f'<span class="badge {esc(status)}">{esc(status)}</span>'
 
 
+def log_link(run: RunEntry, links: Links, *, from_page: bool) -> str:
+    """The run's Rerun log: a link when ``run.rrd`` is there; else a "no log" badge
+    saying why (writing it failed: the exception's last line, the whole traceback in
+    the hover text; or the run was made with ``--no-log``), never a dead link."""
+    if run.has_log:
+        return f'<a href="{esc(links.rrd_href(run.run_dir, from_page=from_page))}">run.rrd</a>'
+    if run.log_error:
+        return (f'<span class="badge nolog" title="{esc(run.log_error)}">log failed</span> '
+                f'<span class="err1">{esc(last_line(run.log_error))}</span>')
+    return '<span class="badge nolog">no log</span>'
+
+
 def unit_text(unit: str) -> str:
     return "" if unit in ("", "-") else f" {unit.replace('^2', '²').replace('^3', '³')}"
 
@@ -56,7 +68,6 @@ def failures_section(runs: Sequence[RunEntry], links: Links) -> str:
     rows = []
     for r in bad:
         page = links.page_href(r.run_id)
-        rrd = links.rrd_href(r.run_dir, from_page=False)
         head = (f"<td>{badge(r.status)}</td><td><a href=\"{esc(page)}#failures\">"
                 f"{esc(r.scenario)}</a></td><td>{esc(r.label)}</td>")
         if r.failures and r.status == "fail" or (r.failures and not r.error):
@@ -68,7 +79,7 @@ def failures_section(runs: Sequence[RunEntry], links: Links) -> str:
             body = (f'<td colspan="3" class="err1">{esc(last_line(r.error) or r.status)}</td>'
                     f"<td>{f'+{len(r.failures)}' if r.failures else ''}</td>")
         rows.append(f'<tr class="{esc(r.status)}">{head}{body}'
-                    f'<td><a href="{esc(rrd)}">run.rrd</a></td></tr>')
+                    f"<td>{log_link(r, links, from_page=False)}</td></tr>")
     return ('<section id="failures"><h2>Failures <span class="meta">'
             f"({len(bad)} of {len(runs)} runs did not pass)</span></h2>"
             '<table class="failures"><thead><tr><th>status</th><th>scenario</th>'

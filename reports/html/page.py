@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from reports.html.charts import PALETTE, Series, esc, fmt, line_chart
-from reports.html.failures import STATUS_ORDER, badge, failures_section
+from reports.html.failures import STATUS_ORDER, badge, failures_section, log_link
 from reports.html.links import Links
 from reports.html.style import CSS
 from reports.manifest import Manifest
@@ -173,12 +173,14 @@ def runs_table(runs: Sequence[RunEntry], links: Links) -> str:
         rows.append(f'<tr data-status="{esc(r.status)}" data-text="{esc(text)}">'
                     f"<td>{badge(r.status)}</td><td><a href=\"{esc(links.page_href(r.run_id))}\">"
                     f"{esc(r.scenario)}</a></td><td>{esc(r.label)}</td><td>{esc(r.family)}</td>"
-                    f"{cells}<td>{fmt(r.wall_s, 3)}</td></tr>")
+                    f"{cells}<td>{fmt(r.wall_s, 3)}</td>"
+                    f"<td>{log_link(r, links, from_page=False)}</td></tr>")
     return ('<h2 id="runs">Runs</h2><div class="controls"><input type="search" id="filter" '
             f'placeholder="filter scenario / variant / family">{checks} <span class="meta">'
             f'<span id="shown">{len(runs)}</span> shown</span></div><table class="runs">'
             "<thead><tr><th>status</th><th>scenario</th><th>variant</th><th>family</th>"
-            f"{head}<th>wall [s]</th></tr></thead><tbody>{''.join(rows)}</tbody></table>")
+            f"{head}<th>wall [s]</th><th>Rerun log</th></tr></thead><tbody>{''.join(rows)}"
+            "</tbody></table>")
 
 
 def provenance_line(manifest: Manifest | None) -> str:
@@ -220,6 +222,10 @@ def render_index(runs: Sequence[RunEntry], pools: Pools, links: Links, title: st
                        if r.info is not None})
     now = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
     count_html = " ".join(f"<span>{badge(s)} {counts[s]}</span>" for s in STATUSES)
+    unlogged = sum(1 for r in runs if r.log_error)
+    if unlogged:
+        count_html += (f' <span id="log-failures"><span class="badge nolog">log failed</span> '
+                       f"{unlogged} run{'' if unlogged == 1 else 's'} without a Rerun log</span>")
     parts = [
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',

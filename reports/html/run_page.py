@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from reports.html.birdseye import birdseye_svg
 from reports.html.charts import esc, fmt
-from reports.html.failures import badge, value_vs_limit, when
+from reports.html.failures import badge, log_link, value_vs_limit, when
 from reports.html.links import STYLE, Links
 from reports.html.marks import Mark, failure_marks
 from reports.html.runs import metrics_table, time_series
@@ -44,7 +44,6 @@ def _failures(run: RunEntry) -> str:
 def render_run_page(run: RunEntry, links: Links, index_title: str) -> str:
     """The page of one run (module doc)."""
     marks = failure_marks(run)
-    rrd = links.rrd_href(run.run_dir, from_page=True)
     run_dir = links.dir_href(run.run_dir, from_page=True)
     info = run.info
     seed = info.seed if info is not None else "–"
@@ -65,7 +64,7 @@ def render_run_page(run: RunEntry, links: Links, index_title: str) -> str:
         f"<span>{esc(run.label)}</span><span>family {esc(run.family)}</span>"
         f"<span>seed {esc(seed)}</span><span>sim {fmt(run.sim_time_s)} s · wall "
         f"{fmt(run.wall_s, 3)} s</span></div><nav><a href=\"../report.html\">← "
-        f"{esc(index_title)}</a> · <a href=\"{esc(rrd)}\">run.rrd</a> · "
+        f"{esc(index_title)}</a> · {log_link(run, links, from_page=True)} · "
         f"<a href=\"{esc(run_dir)}\">run directory</a> · <code>hwyeval view "
         f"{esc(run.run_dir.parent.name)}/{esc(run.run_dir.name)}</code></nav></header><main>",
         _failures(run), mark_line, "".join(views), time_series(run, marks), metrics_table(run),

@@ -49,11 +49,20 @@ def reason(record: RunRecord) -> str:
     return f"min gap {gap:.2f} m, progress {progress:.0f} m"
 
 
+def log_note(record: RunRecord) -> str:
+    """`` [no Rerun log: <the exception's last line>]`` when writing the run's log
+    failed (the verdict stands; the traceback is in run.json's ``outcome.log_error``),
+    else ''."""
+    if not record.outcome.log_error:
+        return ""
+    return f"  [no Rerun log: {_last_line(record.outcome.log_error) or 'failed'}]"
+
+
 def status_line(record: RunRecord, done: int, total: int) -> str:
     wall = record.outcome.wall_s
     took = f"  ({wall:.1f} s)" if wall == wall else ""
     return (f"[{done}/{total}] {record.status.upper():7s} {record.info.scenario}  "
-            f"{reason(record)}{took}")
+            f"{reason(record)}{took}{log_note(record)}")
 
 
 def _clock(seconds: float) -> str:
@@ -156,6 +165,11 @@ class RunProgress:
             self._bar.stop()
 
 
+def _count(n: int, noun: str) -> str:
+    """``1 scenario``, ``2 scenarios``."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
 def short_summary(records: Sequence[RunRecord], wall_s: float) -> list[str]:
     """The end of a run's output (module doc)."""
     lines: list[str] = []
@@ -164,7 +178,11 @@ def short_summary(records: Sequence[RunRecord], wall_s: float) -> list[str]:
         lines.append(" short summary ".center(72, "="))
         order = {"error": 0, "timeout": 1, "fail": 2}
         for r in sorted(bad, key=lambda r: (order.get(r.status, 3), r.info.scenario)):
-            lines.append(f"{r.status.upper():7s} {r.info.scenario}: {reason(r)}")
+            lines.append(f"{r.status.upper():7s} {r.info.scenario}: {reason(r)}{log_note(r)}")
+    unlogged = sorted(r.info.scenario for r in records if r.outcome.log_error)
+    if unlogged:
+        lines.append(f"NO LOG  {_count(len(unlogged), 'run')} without a Rerun log (writing it "
+                     f"failed; run.json outcome.log_error has why): {', '.join(unlogged)}")
     counts: dict[str, int] = {}
     for r in records:
         counts[r.status] = counts.get(r.status, 0) + 1
@@ -173,6 +191,6 @@ def short_summary(records: Sequence[RunRecord], wall_s: float) -> list[str]:
                      if s in counts)
     meaning = ("exit 0: every scenario passed" if not bad else
                "exit 1: some scenario did not pass (see above; the reports say why)")
-    lines.append(f"{len(records)} scenarios in {wall_s:.1f} s: {text or 'nothing run'} — "
+    lines.append(f"{_count(len(records), 'scenario')} in {wall_s:.1f} s: {text or 'nothing run'} — "
                  f"{meaning}")
     return lines

@@ -47,6 +47,7 @@ verdict located them), ``/docs/scenario``, ``/docs/controller``.
 
 from __future__ import annotations
 
+import os
 import re
 import time
 import uuid
@@ -155,18 +156,29 @@ def _text(value: str) -> np.ndarray:
 def log_record(record: RunRecord, out: Path, *, catalog_name: str | None = None,
                application_id: str | None = None) -> Path:
     """Write the recording of ``record`` (judged or not) to ``out``; returns ``out``.
-    ``application_id`` defaults to :func:`application_id_for` the run's scenario."""
+    ``application_id`` defaults to :func:`application_id_for` the run's scenario.
+
+    All or nothing: on any exception no file is left at ``out`` (nor a partial one
+    beside it) and the exception propagates."""
     info = record.info
     catalog = catalog_name if catalog_name is not None else (info.catalog_name or info.catalog)
     app = application_id or application_id_for(catalog, info.scenario)
+    # Written beside ``out`` and renamed into place once complete: a log that raised
+    # half way leaves no file, so nothing (a viewer, a resume) mistakes a road-only
+    # recording for the run's log.
+    partial = out.with_name(out.name + ".partial")
     rec = rr.RecordingStream(app, recording_id=new_recording_id())
     try:
-        rec.save(out, default_blueprint=default_blueprint(view_geometry(record)))
+        rec.save(partial, default_blueprint=default_blueprint(view_geometry(record)))
         _send_identity(rec, record, catalog)
         _write(RunLog(rec, record))
         rec.flush()
-    finally:
+    except BaseException:
         rec.disconnect()
+        partial.unlink(missing_ok=True)
+        raise
+    rec.disconnect()
+    os.replace(partial, out)
     return out
 
 

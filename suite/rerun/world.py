@@ -253,14 +253,19 @@ def _polyline_per_step(log: RunLog, values: np.ndarray
     strip = valid >= 2
     # boolean indexing walks rows in order: each step's valid points, in point order
     strips = FlatStrips(arr[ok & strip[:, None]], valid[strip].astype(np.int64))
-    has = valid > 0
-    rows = np.flatnonzero(has)
+    rows = np.flatnonzero(valid > 0)
     last[rows] = arr[rows, _last_true(ok[rows])]
     return strips, strip.astype(np.int64), last
 
 
 def _last_true(mask: np.ndarray) -> np.ndarray:
-    """Column of the last True of each row of a (T, P) mask (rows with one at least)."""
+    """Column of the last True of each row of a (T, P) mask (rows with one at least).
+
+    A controller that returns no plan records (T, 0, 2) arrays: with no columns there
+    is no row with a True either, and the answer is the empty (0,) index array (numpy's
+    argmax refuses an empty axis)."""
+    if mask.shape[0] == 0 or mask.shape[1] == 0:
+        return np.zeros(mask.shape[0], dtype=np.int64)
     out: np.ndarray = mask.shape[1] - 1 - np.argmax(mask[:, ::-1], axis=1)
     return out
 
