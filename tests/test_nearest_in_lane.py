@@ -8,7 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controllers.behaviour.perception import INTRUSION_M, _nearest_in_lane
+from controllers.behaviour.perception import CUT_IN_MAX_LATERAL_MPS, INTRUSION_M, _nearest_in_lane
+
+MAX_VY = CUT_IN_MAX_LATERAL_MPS
 
 
 def _numpy_form(rel_lane: np.ndarray, y: np.ndarray, v_y: np.ndarray, width: np.ndarray,
@@ -17,7 +19,7 @@ def _numpy_form(rel_lane: np.ndarray, y: np.ndarray, v_y: np.ndarray, width: np.
     if known:
         reach = 0.5 * (lane_width + width) - INTRUSION_M
         y_now = y - centre
-        y_then = y_now + v_y * horizon
+        y_then = y_now + np.clip(v_y, -MAX_VY, MAX_VY) * horizon
         lo, hi = np.minimum(y_now, y_then), np.maximum(y_now, y_then)
         intruding = (hi > -reach) & (lo < reach)
     else:
@@ -36,7 +38,7 @@ def test_equals_the_numpy_form(seed: int) -> None:
     n = int(rng.integers(0, 30))
     rel_lane = rng.integers(-2, 3, n)
     y = rel_lane * 3.5 + rng.normal(0.0, 1.0, n)
-    v_y = rng.normal(0.0, 1.0, n)
+    v_y = rng.normal(0.0, 2.5, n)  # some beyond the clip
     width = rng.uniform(1.6, 2.6, n)
     ds = np.round(rng.uniform(-80.0, 80.0, n), 0)  # rounded: ties happen
     if n:
@@ -49,7 +51,8 @@ def test_equals_the_numpy_form(seed: int) -> None:
                 horizon = 1.0 if ahead else 0.0
                 args = (rel_lane, y, v_y, width, ds, merging if ahead else np.zeros(n, bool),
                         rel, known, rel * 3.5, 3.5, horizon)
-                assert _nearest_in_lane(*args, INTRUSION_M, ahead) == _numpy_form(*args, ahead)
+                assert _nearest_in_lane(*args, INTRUSION_M, ahead, MAX_VY) == \
+                    _numpy_form(*args, ahead)
 
 
 def test_known_answers() -> None:
@@ -59,9 +62,23 @@ def test_known_answers() -> None:
     zeros, none = np.zeros(4), np.zeros(4, dtype=bool)
     width = np.full(4, 1.9)
     common = (rel_lane, y, zeros, width, ds, none, 0, True, 0.0, 3.5)
-    assert _nearest_in_lane(*common, 0.0, INTRUSION_M, True) == 3  # the straddler leads
-    assert _nearest_in_lane(*common, 0.0, INTRUSION_M, False) == 1
+    assert _nearest_in_lane(*common, 0.0, INTRUSION_M, True, MAX_VY) == 3  # the straddler
+    assert _nearest_in_lane(*common, 0.0, INTRUSION_M, False, MAX_VY) == 1
     unknown = (rel_lane, y, zeros, width, ds, none, 0, False, 0.0, 3.5)
-    assert _nearest_in_lane(*unknown, 0.0, INTRUSION_M, True) == 0  # lane index only
+    assert _nearest_in_lane(*unknown, 0.0, INTRUSION_M, True, MAX_VY) == 0  # lane index only
     assert _nearest_in_lane(rel_lane, y, zeros, width, ds, none, 5, True, 17.5, 3.5, 0.0,
-                            INTRUSION_M, True) == -1
+                            INTRUSION_M, True, MAX_VY) == -1
+
+
+def test_a_steep_heading_two_lanes_away_is_no_cut_in() -> None:
+    """A car two lanes right (y = -7 m) heading 25 deg at 21 m/s (v_y = 8.9 m/s: an
+    on-ramp's junction lane) would reach the ego's lane within the 1 s horizon at its
+    own lateral speed, not at the fastest lane change's (3 m/s)."""
+    one = np.ones(1)
+    args = (np.array([-2]), np.array([-7.0]), np.array([8.9]), 1.9 * one, np.array([20.0]),
+            np.zeros(1, dtype=bool), 0, True, 0.0, 3.5, 1.0, INTRUSION_M, True)
+    assert _nearest_in_lane(*args, 100.0) == 0
+    assert _nearest_in_lane(*args, MAX_VY) == -1
+    # one lane away, the clipped motion still reaches the lane: a cut-in
+    near = (np.array([-1]), np.array([-3.5]), np.array([8.9]), *args[3:])
+    assert _nearest_in_lane(*near, MAX_VY) == 0

@@ -47,6 +47,7 @@ from controllers.behaviour.ellipses import ellipse_semi_axes, offset_centre_y
 from controllers.behaviour.following import FollowParams, follow_speed_mps
 from controllers.behaviour.lane_change import (
     LaneChangeParams,
+    change_duration_s,
     decel_needed_mps2,
     lane_change_safety,
 )
@@ -96,13 +97,16 @@ class BehaviourParams:
 @dataclass(frozen=True)
 class _Plan:
     """The lane plan: ``lane`` held (``origin == lane``) or moved into from ``origin``,
-    since ``since_s``; ``passing``: the vehicle being passed ('' none)."""
+    since ``since_s``; ``passing``: the vehicle being passed ('' none); ``end_s_m``: the
+    path position where the change's stretch ends (what its gap rules were checked
+    over, and are re-checked over until the commit point)."""
 
     lane: int
     origin: int
     since_s: float
     passing: str = ""
     evasive: bool = False
+    end_s_m: float = math.nan
 
     @property
     def changing(self) -> bool:
@@ -188,16 +192,24 @@ class LaneBehaviour:
             return plan, "keep lane: free" if plan.lane == 0 else "keep lane", False
         reasons = []
         for w in want:
+            curve = self._curve_acc_mps2(sc, w.end_s_m)
+            if not w.urgent and lc.max_lat_acc_mps2 - curve < lc.change_lat_acc_mps2:
+                reasons.append(f"{w.why}: the curve takes {curve:.1f} m/s² lateral")
+                continue
             bound = lc.evasive_decel_mps2 if w.evasive else lc.safe_decel_mps2
             ok, why = lane_change_safety(sc, w.target, w.end_s_m, lc, bound,
                                          self.ego.allow_shoulder)
             if not ok:
                 reasons.append(why)
                 continue
+            conflict = self._merge_conflict(sc, w.target)
+            if conflict:
+                reasons.append(conflict)
+                continue
             if t - plan.since_s < lc.hold_s and not w.urgent:
                 reasons.append(f"{w.why}: holding the lane for {lc.hold_s:g} s")
                 continue
-            new = _Plan(w.target, plan.lane, t, w.passing, w.evasive)
+            new = _Plan(w.target, plan.lane, t, w.passing, w.evasive, w.end_s_m)
             tried = f" ({'; '.join(reasons)})" if reasons else ""
             return new, f"{w.why}: {why}{tried}", False
         if blocked_by is not None:
@@ -215,7 +227,12 @@ class LaneBehaviour:
         if abs(sc.ego.lat_m - goal) < lc.done_tolerance_m:
             return _Plan(plan.lane, plan.lane, t, plan.passing), f"in the {side} lane", False
         if progress < lc.commit_fraction:
-            end = sc.ego.s_m + max(sc.ego.speed_mps, 5.0) * 4.0
+            # The stretch the change was started on (a new one only for a plan without):
+            # a different stretch for the re-check would flip a decision the start
+            # check just took (a stopped car beyond the first, inside the second).
+            end = plan.end_s_m if math.isfinite(plan.end_s_m) else \
+                sc.ego.s_m + self._change_length_m(sc, plan.lane)
+            end = max(end, sc.ego.s_m + lc.standstill_m)
             bound = lc.evasive_decel_mps2 if plan.evasive else lc.abort_decel_mps2
             ok, why = lane_change_safety(sc, plan.lane, end, lc, bound,
                                          self.ego.allow_shoulder)
@@ -265,8 +282,12 @@ class LaneBehaviour:
         blocked = lead is not None and v_here < set_speed - lc.block_margin_mps
         stopped = lead is not None and abs(lead.speed_mps) < 0.5
         if blocked and lead is not None:
-            end = float(sc.fn.s_m[lead.index] + 0.5 * sc.fn.length_m[lead.index]
-                        + lc.pass_after_m)
+            # The pass's stretch: beyond the passed car, and at least a whole change
+            # (a stopped car just beyond the first would otherwise only show in the
+            # re-check, over the longer stretch, and flip the decision a step later).
+            end = max(float(sc.fn.s_m[lead.index] + 0.5 * sc.fn.length_m[lead.index]
+                            + lc.pass_after_m),
+                      sc.ego.s_m + self._change_length_m(sc, c + 1))
             lid = sc.traffic.ids[lead.index]
             evasive = stopped and self._needs_evasion(sc.ego.speed_mps, lead.gap_m)
             for step, name in ((1, "left"), (-1, "right")):
@@ -276,20 +297,122 @@ class LaneBehaviour:
                 if v_there - v_here > lc.incentive_mps:
                     wants.append(_Want(c + step, end, f"pass {lid} on the {name}", stopped, lid,
                                        evasive))
-        slot = sc.slot(c)
-        horizon = max(sc.ego.speed_mps, 5.0) * 8.0 + 50.0
-        if slot is not None and slot.continues_m < horizon:
-            for step in ((-1 if c > 0 else 1), (1 if c > 0 else -1)):
-                wants.append(_Want(c + step, sc.ego.s_m + slot.continues_m,
-                                   f"lane ends in {slot.continues_m:.0f} m", True))
+        wants += self._lane_end_wants(sc, c)
         if c != 0 and not wants and self._passed(sc, plan):
             home = c - int(math.copysign(1, c))
             v_home, _ = self._lane_speed(sc, home, set_speed)
-            if v_home >= v_here - 0.5:
+            if v_home >= v_here - 0.5 and not self._merging_into(sc, home):
                 name = "right" if home < c else "left"
-                wants.append(_Want(home, sc.ego.s_m + max(sc.ego.speed_mps, 5.0) * 4.0,
+                wants.append(_Want(home, sc.ego.s_m + self._change_length_m(sc, home),
                                    f"return {name}", False))
+        if not wants:
+            wants += self._courtesy_wants(sc, c, v_here, set_speed)
         return wants, (lead if blocked else None)
+
+    def _lane_end_wants(self, sc: LaneScene, c: int) -> list[_Want]:
+        """Leaving a lane that ends: one direction, towards the reference lane (a through
+        lane: the lanes beside an ending lane that continue are on that side), held
+        until done; urgent (no hold time) once the end is within 8 s plus 50 m; the
+        stretch checked is the move's, or the rest of the lane when that is shorter."""
+        slot = sc.slot(c)
+        if c == 0 or slot is None or not math.isfinite(slot.continues_m):
+            return []
+        toward = -1 if c > 0 else 1
+        if sc.slot(c + toward) is None:
+            return []
+        horizon = max(sc.ego.speed_mps, 5.0) * 8.0 + 50.0
+        length = min(slot.continues_m, self._change_length_m(sc, c + toward))
+        return [_Want(c + toward, sc.ego.s_m + length,
+                      f"lane ends in {slot.continues_m:.0f} m",
+                      slot.continues_m < horizon)]
+
+    def _merging_into(self, sc: LaneScene, rel: int) -> list[int]:
+        """Vehicles that will merge into lane ``rel`` near the ego: on a lane that ends
+        (:meth:`LaneScene.merging_near`), or entering from an on-ramp on a side where
+        ``rel`` is the outermost regular lane (:meth:`LaneScene.entering_near`)."""
+        lc = self.params.lane_change
+        near = sc.merging_near(rel, lc.merge_behind_m, lc.merge_ahead_m)
+        return near + [j for j, side in self._entering(sc) if self._outermost(sc, rel, side)]
+
+    def _merge_conflict(self, sc: LaneScene, target: int) -> str:
+        """Why a change into relative lane ``target`` would meet a vehicle merging into it
+        ('' none): the gap rules of :func:`lane_change_safety` (front and rear time gaps
+        over ``standstill_m``) applied to each vehicle merging into that lane (from a
+        lane that ends, or an on-ramp, not yet in it: the lane's own gap check does not
+        see it) at its position now and 1, 2 and 3 s on, both speeds held."""
+        lc = self.params.lane_change
+        v = sc.ego.speed_mps
+        for j in self._merging_into(sc, target):
+            ds, v_j = float(sc.ds_m[j]), float(sc.fn.v_s_mps[j])
+            half = 0.5 * (float(sc.fn.length_m[j]) + self.ego.length_m)
+            for t_s in (0.0, 1.0, 2.0, 3.0):
+                d = ds + (v_j - v) * t_s
+                need = lc.standstill_m + (lc.front_time_gap_s * v if d >= 0.0
+                                          else lc.rear_time_gap_s * max(v_j, 0.0))
+                if abs(d) - half < need:
+                    side = "left" if target > sc.ego_lane else "right"
+                    return f"{side} lane: {sc.traffic.ids[j]} merging into it"
+        return ""
+
+    def _entering(self, sc: LaneScene) -> list[tuple[int, int]]:
+        lc = self.params.lane_change
+        return sc.entering_near(lc.merge_behind_m, lc.merge_ahead_m)
+
+    @staticmethod
+    def _outermost(sc: LaneScene, rel: int, side: int) -> bool:
+        """Only shoulders and lanes that end lie beyond relative lane ``rel`` on ``side``
+        (+1 left, -1 right): traffic entering there merges into ``rel``."""
+        slot = sc.slot(rel)
+        if slot is None or slot.is_shoulder:
+            return False
+        beyond = [r for r in sc.lanes if (r - rel) * side > 0]
+        return all(sc.lanes[r].is_shoulder or math.isfinite(sc.lanes[r].continues_m)
+                   for r in beyond)
+
+    def _courtesy_wants(self, sc: LaneScene, c: int, v_here: float, set_speed: float
+                        ) -> list[_Want]:
+        """Make room: traffic merging into the ego's lane near it (from a lane that
+        ends beside it, or entering from an on-ramp while nothing but shoulders and
+        ending lanes lies between the ego's lane and the ramp), and the lane on the far
+        side as fast and continuing: move there, not urgent (the gap rules and the hold
+        time apply), and return once they have merged (:meth:`_merging_into`)."""
+        merging = [(j, int(math.copysign(1, float(sc.fn.y_m[j]) - sc.offset_m(c))))
+                   for j in self._merging_into(sc, c)]
+        if not merging:
+            return []
+        sides = {side for _, side in merging}
+        if len(sides) != 1:
+            return []  # merging from both sides: nowhere to make room
+        away = -sides.pop()
+        slot = sc.slot(c + away)
+        if slot is None or slot.is_shoulder or not math.isinf(slot.continues_m):
+            return []
+        v_there, _ = self._lane_speed(sc, c + away, set_speed)
+        if v_there < v_here - 0.5:
+            return []
+        first = sc.traffic.ids[merging[0][0]]
+        name = "left" if away > 0 else "right"
+        return [_Want(c + away, sc.ego.s_m + self._change_length_m(sc, c + away),
+                      f"make room for {first} merging: {name}", False)]
+
+    def _change_length_m(self, sc: LaneScene, target: int) -> float:
+        """Path length [m] of a change into relative lane ``target`` at the ego's speed:
+        :func:`change_duration_s` with the curve over the nominal stretch."""
+        lc = self.params.lane_change
+        v = max(sc.ego.speed_mps, 5.0)
+        nominal = v * lc.change_s
+        move = abs(sc.offset_m(target) - sc.ego.lat_m)
+        curve = self._curve_acc_mps2(sc, sc.ego.s_m + nominal)
+        return v * change_duration_s(move, curve, lc)
+
+    def _curve_acc_mps2(self, sc: LaneScene, end_s_m: float) -> float:
+        """v² max |kappa| [m/s²] of the reference over [ego s, ``end_s_m``] (at least a
+        change's nominal stretch): the lateral acceleration the road itself asks."""
+        v = max(sc.ego.speed_mps, 0.0)
+        lc = self.params.lane_change
+        end = max(end_s_m, sc.ego.s_m + max(v, 5.0) * lc.change_s)
+        s = np.linspace(sc.ego.s_m, min(end, self.path.length_m), 16)
+        return float(v * v * np.max(np.abs(self.path.kappa(s))))
 
     def _needs_evasion(self, speed_mps: float, gap_m: float) -> bool:
         """Stopping s0 short of a stopped car ``gap_m`` ahead needs more than the
@@ -325,11 +448,37 @@ class LaneBehaviour:
                                   float(self._accel[lead.index]))
             if vt < target:
                 target, lead_index = vt, lead.index
+        for j in self._merging_into(sc, plan.lane):
+            vt = self._let_in_speed_mps(sc, j, set_speed)
+            if vt < target:
+                target, lead_index = vt, j
         # Keeping a lane that ends: stop before its end unless a change takes the ego out.
         slot = sc.slot(plan.lane)
         if not plan.changing and slot is not None and math.isfinite(slot.continues_m):
             target = min(target, follow_speed_mps(slot.continues_m - 5.0, 0.0, v, set_speed, fp))
         return target, lead_index
+
+    def _let_in_speed_mps(self, sc: LaneScene, j: int, set_speed: float) -> float:
+        """Speed target that lets merging vehicle ``j`` in ahead, if it will get there
+        first: not yet ahead of the ego's CG (a lead otherwise), at speed v_j with
+        ``room`` metres of its lane left, it must merge within tau = room / v_j; with
+        both speeds held its centre is then ds + (v_j - v) tau ahead of the ego's. Ahead
+        then: the car-following set-point behind it at that predicted gap, so the ego
+        eases off early and the gap opens before the merge, instead of braking hard when
+        it cuts in. Behind then: no constraint (it merges behind the ego)."""
+        ds = float(sc.ds_m[j])
+        if ds > 0.0:
+            return set_speed  # ahead already: a lead of the lane (LaneScene.merging)
+        v, v_j = sc.ego.speed_mps, max(float(sc.fn.v_s_mps[j]), 0.0)
+        room = sc.merge_room_m(j)
+        if not math.isfinite(room) or v_j < 1.0:
+            return set_speed
+        tau = max(room, 0.0) / v_j
+        ahead = ds + (v_j - v) * tau
+        half = 0.5 * (float(sc.fn.length_m[j]) + self.ego.length_m)
+        if ahead <= 0.0:
+            return set_speed
+        return follow_speed_mps(max(ahead - half, 0.0), v_j, v, set_speed, self.params.follow)
 
     def _clears(self, sc: LaneScene, plan: _Plan, lead: Neighbour) -> bool:
         """During a change: will the ego be out of the origin lane before it reaches the

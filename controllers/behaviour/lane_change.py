@@ -52,6 +52,17 @@ class LaneChangeParams:
     evasive_decel_mps2: the braking an *evasive* change (round a stopped car the ego
     cannot stop for comfortably) may ask of the new follower and of the ego, to start and
     to carry on (a driver behind braking hard beats running into a stopped car).
+    max_lat_acc_mps2: the lateral acceleration a change may reach with the road's own
+    (v² |kappa| of the curve plus the move's), below the comfort criterion's 4.89 m/s²
+    for the tracking's overshoot; change_lat_acc_mps2: a change's own peak on a
+    straight road at the nominal duration ``change_s``; a change that is not urgent
+    starts only where the curve over its stretch leaves at least that much, and every
+    change's stretch (for the gap rules) grows where the curve leaves less (a
+    minimum-jerk move of D metres in T seconds peaks at 5.77 D / T²).
+    merge_behind_m, merge_ahead_m: vehicles on a lane that ends beside the ego's,
+    from this far behind to this far ahead of its CG, make it leave room: no return
+    into their target lane, a courtesy change away from it when the far lane is free,
+    and a speed that lets in a faster one that will reach the merge first.
     """
 
     front_time_gap_s: float = 0.6
@@ -69,13 +80,24 @@ class LaneChangeParams:
     block_margin_mps: float = 1.0
     undertake_below_mps: float = 2.0
     evasive_decel_mps2: float = 4.5
+    max_lat_acc_mps2: float = 4.0
+    change_lat_acc_mps2: float = 1.5
+    change_s: float = 4.0
+    merge_behind_m: float = 40.0
+    merge_ahead_m: float = 120.0
 
     def __post_init__(self) -> None:
         require_numbers(self, ("front_time_gap_s", "rear_time_gap_s", "standstill_m",
                                "safe_decel_mps2", "abort_decel_mps2", "incentive_mps",
                                "done_tolerance_m", "hold_s", "pass_after_m",
                                "lane_end_margin_m", "plan_horizon_s", "block_margin_mps",
-                               "undertake_below_mps", "evasive_decel_mps2"))
+                               "undertake_below_mps", "evasive_decel_mps2",
+                               "max_lat_acc_mps2", "change_lat_acc_mps2", "change_s",
+                               "merge_behind_m", "merge_ahead_m"))
+        for name in ("max_lat_acc_mps2", "change_lat_acc_mps2", "change_s"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"LaneChangeParams.{name} must be > 0, got "
+                                 f"{getattr(self, name)!r}")
         if not 0.0 < self.commit_fraction < 1.0:
             raise ValueError("LaneChangeParams.commit_fraction must be in (0, 1), "
                              f"got {self.commit_fraction!r}")
@@ -83,6 +105,19 @@ class LaneChangeParams:
             raise ValueError("LaneChangeParams.abort_decel_mps2 must be >= safe_decel_mps2")
         if self.evasive_decel_mps2 < self.abort_decel_mps2:
             raise ValueError("LaneChangeParams.evasive_decel_mps2 must be >= abort_decel_mps2")
+
+
+MIN_JERK_PEAK = 5.77  # peak |y''| T² / D of a minimum-jerk move (10 t³ - 15 t⁴ + 6 t⁵)
+
+
+def change_duration_s(move_m: float, curve_acc_mps2: float, p: LaneChangeParams) -> float:
+    """Duration [s] of a lateral move of ``move_m`` [m] on a road whose curve already
+    asks ``curve_acc_mps2`` (v² |kappa|) of the lateral acceleration: the nominal
+    ``change_s`` where a minimum-jerk move of that duration fits under
+    ``max_lat_acc_mps2`` with the curve's share, else stretched until it does (with at
+    least a tenth of the limit left, so that a change is never planned as endless)."""
+    budget = max(p.max_lat_acc_mps2 - abs(curve_acc_mps2), 0.1 * p.max_lat_acc_mps2)
+    return max(p.change_s, math.sqrt(MIN_JERK_PEAK * abs(move_m) / budget))
 
 
 def decel_needed_mps2(closing_mps: float, gap_m: float, standstill_m: float) -> float:

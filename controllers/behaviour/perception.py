@@ -35,7 +35,12 @@ IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 INTRUSION_M = 0.3  # a box reaching this far past a lane's edge is in that lane
 CUT_IN_HORIZON_S = 1.0  # a car whose sideways motion brings it into a lane this soon leads
+# The fastest sideways motion a cut-in is predicted with [m/s]: lane changes peak at 1-3
+# m/s; a steeper heading is the road's (a car on an on-ramp's junction lane, joining at
+# 25 deg two lanes away), not a move across the lanes.
+CUT_IN_MAX_LATERAL_MPS = 3.0
 MERGE_HORIZON_S = 6.0  # a car whose lane ends within this much of its driving must merge
+ENTRY_HEADING_RAD = 0.6  # an on-ramp car heads along the carriageway within this [rad]
 
 
 @dataclass(frozen=True)
@@ -184,13 +189,15 @@ class LaneScene:
     def intruding(self, rel: int, horizon_s: float = 0.0) -> BoolArray:
         """Vehicles whose box reaches more than ``INTRUSION_M`` into relative lane ``rel``
         now or, moving sideways at their lateral speed, within ``horizon_s`` [s] (a car
-        cutting in, or straddling the line), whatever lane the world assigns them."""
+        cutting in, or straddling the line), whatever lane the world assigns them; the
+        lateral speed is clipped to ``CUT_IN_MAX_LATERAL_MPS``."""
         if rel not in self.lanes or self.traffic.count == 0:
             return np.zeros(self.traffic.count, dtype=bool)
         centre = self.offset_m(rel)
         reach = 0.5 * (self.lanes[rel].width_m + self.fn.width_m) - INTRUSION_M
         y_now = self.fn.y_m - centre
-        y_then = y_now + self.fn.v_y_mps * horizon_s
+        y_then = y_now + np.clip(self.fn.v_y_mps, -CUT_IN_MAX_LATERAL_MPS,
+                                 CUT_IN_MAX_LATERAL_MPS) * horizon_s
         # The box is in the corridor at some time in [0, horizon] if the segment between
         # y_now and y_then meets [-reach, reach].
         lo, hi = np.minimum(y_now, y_then), np.maximum(y_now, y_then)
@@ -213,6 +220,55 @@ class LaneScene:
                 continue
             left_m = end[0] - (pos + float(self.fn.s_m[j] - self.ego.s_m))
             out[j] = left_m < MERGE_HORIZON_S * max(float(self.fn.v_s_mps[j]), 5.0)
+        return out
+
+    def merge_room_m(self, j: int) -> float:
+        """Road left [m] before vehicle ``j``'s lane ends, along the route from its
+        position (inf when its lane does not end: a through lane, or unknown)."""
+        ends = self.context.ending_lanes_by_road
+        pos = self.context.route_pos_m
+        if not ends or not math.isfinite(pos):
+            return math.inf
+        end = ends.get(self.traffic.road_id[j], {}).get(int(self.traffic.lane_index[j]))
+        if end is None:
+            return math.inf
+        return end[0] - (pos + float(self.fn.s_m[j] - self.ego.s_m))
+
+    def merging_near(self, rel: int, behind_m: float, ahead_m: float) -> list[int]:
+        """Indices of the vehicles merging into relative lane ``rel`` (:meth:`merging`)
+        whose centre is within [-behind_m, ahead_m] of the ego's CG along the path."""
+        ds = self.ds_m
+        return [int(j) for j in np.flatnonzero(self.merging(rel))
+                if -behind_m <= float(ds[j]) <= ahead_m]
+
+    def entering_near(self, behind_m: float, ahead_m: float) -> list[tuple[int, int]]:
+        """(index, side: -1 right, +1 left) of the vehicles about to enter the
+        carriageway from a road off the route (an on-ramp): on a road the lane context
+        does not place on the route (known, not empty), within [-behind_m, ahead_m] of
+        the ego's CG along the path, beyond the outer edge of the outermost lane on that
+        side, heading along the path (within ENTRY_HEADING_RAD of it, moving forward):
+        they merge into the lanes on that side, whatever their road is called."""
+        if self.traffic.count == 0 or not self.lanes:
+            return []
+        on_route = self.context.reference_index_by_road
+        edges = [(self.offset_m(r) - 0.5 * slot.width_m, self.offset_m(r) + 0.5 * slot.width_m)
+                 for r, slot in self.lanes.items()]
+        right, left = min(e[0] for e in edges), max(e[1] for e in edges)
+        ds, fn = self.ds_m, self.fn
+        out = []
+        for j in range(self.traffic.count):
+            road = self.traffic.road_id[j]
+            if not road or road in on_route or road.startswith(":"):
+                continue
+            if not -behind_m <= float(ds[j]) <= ahead_m or fn.v_s_mps[j] < 1.0:
+                continue
+            if abs(math.atan2(float(fn.v_y_mps[j]), float(fn.v_s_mps[j]))) > ENTRY_HEADING_RAD:
+                continue
+            y = float(fn.y_m[j])
+            if y < right:
+                out.append((j, -1))
+            elif y > left:
+                out.append((j, 1))
         return out
 
     def _nearest(self, rel: int, ahead: bool) -> Neighbour | None:
@@ -238,7 +294,8 @@ class LaneScene:
         fn = self.fn
         j = _nearest_in_lane(self.rel_lane, fn.y_m, fn.v_y_mps, fn.width_m, self.ds_m,
                              merging, rel, known, centre, width,
-                             CUT_IN_HORIZON_S if ahead else 0.0, INTRUSION_M, ahead)
+                             CUT_IN_HORIZON_S if ahead else 0.0, INTRUSION_M, ahead,
+                             CUT_IN_MAX_LATERAL_MPS)
         if j < 0:
             return None
         half = self._half_lengths_m
@@ -251,10 +308,12 @@ class LaneScene:
 def _nearest_in_lane(rel_lane: IntArray, y_m: FloatArray, v_y_mps: FloatArray,
                      width_m: FloatArray, ds_m: FloatArray, merging: BoolArray, rel: int,
                      lane_known: bool, centre_m: float, lane_width_m: float,
-                     horizon_s: float, intrusion_m: float, ahead: bool) -> int:
+                     horizon_s: float, intrusion_m: float, ahead: bool,
+                     max_lateral_mps: float) -> int:
     """Index of the vehicle :meth:`LaneScene._find_nearest` picks, -1 if none: in the
     lane when rel_lane == rel, or merging, or (lane known) its box's lateral span
-    [y - centre, y - centre + v_y horizon] meets [-reach, reach] with reach =
+    [y - centre, y - centre + v_y horizon] (v_y clipped to ±max_lateral_mps) meets
+    [-reach, reach] with reach =
     (lane width + its width) / 2 - intrusion; then ds > 0 smallest (ahead) or ds <= 0
     largest (behind), the first of equals."""
     best = -1
@@ -263,7 +322,8 @@ def _nearest_in_lane(rel_lane: IntArray, y_m: FloatArray, v_y_mps: FloatArray,
         if not inside and lane_known:
             reach = 0.5 * (lane_width_m + width_m[j]) - intrusion_m
             y_now = y_m[j] - centre_m
-            y_then = y_now + v_y_mps[j] * horizon_s
+            v_y = min(max(v_y_mps[j], -max_lateral_mps), max_lateral_mps)
+            y_then = y_now + v_y * horizon_s
             lo = y_now if y_now < y_then else y_then
             hi = y_now if y_now > y_then else y_then
             inside = hi > -reach and lo < reach

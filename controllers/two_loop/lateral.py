@@ -5,9 +5,17 @@ centre while passing and back to 0 afterwards. C/GMRES tracks a moving optimum, 
 step in a parameter is a step in its residual; every control period the shaper moves
 
 1. a rate limiter r toward r_raw by at most rate h per sub-step, with
-   rate = min(``rate_mps``, V ``heading_rad``) times the planner's relative horizon
-   length (V the measured speed: a slow car cannot follow the rate with a sensible
-   heading; a growing C/GMRES horizon is short at first); while the behaviour marks the
+   rate = min(``rate_mps``, V ``heading_rad``, a_move T_f e) times the planner's
+   relative horizon length (V the measured speed: a slow car cannot follow the rate with
+   a sensible heading; a growing C/GMRES horizon is short at first). a_move =
+   max(``max_lat_acc_mps2`` - |V² kappa|, ``min_move_lat_acc_mps2``) is what the road's
+   curve (kappa at the car, V² kappa its centripetal acceleration) leaves of the lateral
+   acceleration for the move: the filter below turns a ramp of slope R into yr'' of at
+   most R / (T_f e) (the critically damped response to a ramp, R t e^(-t/T_f) / T_f²,
+   peaks at t = T_f), so the move's own lateral acceleration stays within a_move and the
+   sum with the curve's within ``max_lat_acc_mps2`` (a change on a tight curve is
+   stretched, not sharpened; on a straight road the bound, 2.2 m/s at the defaults, is
+   above ``rate_mps`` and changes nothing); while the behaviour marks the
    move evasive (a stopped car ahead the ego cannot stop for comfortably) the
    ``evasive_*`` limits apply instead, not scaled by the horizon: an evasion cannot wait
    for the horizon to grow (a car starting 40-90 m behind a stopped one has 1.5-4 s);
@@ -47,11 +55,15 @@ class LateralRefParams:
     weight_time_s: float = param(1.0, "s", "blend time of Cy from/to the OCP's c_y")
     evasive_rate_mps: float = param(2.5, "m/s", "rate limit while the move is evasive")
     evasive_heading_rad: float = param(0.25, "rad", "heading bound of that rate (V times this)")
+    max_lat_acc_mps2: float = param(4.0, "m/s²",
+                                    "lateral acceleration of a move plus the curve's V² kappa")
+    min_move_lat_acc_mps2: float = param(0.4, "m/s²",
+                                         "a move's own lateral acceleration on the tightest curve")
 
     def __post_init__(self) -> None:
         check_leaves(self)
         for name in ("rate_mps", "heading_rad", "weight_time_s", "evasive_rate_mps",
-                     "evasive_heading_rad"):
+                     "evasive_heading_rad", "max_lat_acc_mps2", "min_move_lat_acc_mps2"):
             check_range(self, name, gt=0.0)
         for name in ("filter_s", "c_y_engaged"):
             check_range(self, name, ge=0.0)
@@ -77,6 +89,7 @@ class LateralReferenceShaper:
         self._phi = math.nan
         self._engaged = math.nan
         self._evasive = False
+        self._curvature = 0.0
 
     @property
     def raw_m(self) -> float:
@@ -104,14 +117,16 @@ class LateralReferenceShaper:
         self._yr_rate = 0.0
 
     def update(self, raw_m: float, dt_s: float | None, y_now_m: float, speed_mps: float,
-               rate_scale: float, evasive: bool = False) -> float:
+               rate_scale: float, evasive: bool = False, curvature_1pm: float = 0.0) -> float:
         """Advance by dt_s (None: first step, start at y_now_m at rest); returns yr [m].
 
         raw_m: the behaviour's reference; y_now_m: the car's lateral offset [m];
         speed_mps: its speed; rate_scale: the planner's relative horizon length in [0, 1];
         evasive: the move evades an obstacle (the evasive rate limits apply, the weight
-        blends in four times faster).
+        blends in four times faster); curvature_1pm: the reference path's curvature at
+        the car [1/m] (its V² kappa bounds the move's rate, module doc).
         """
+        self._curvature = float(curvature_1pm) if math.isfinite(curvature_1pm) else 0.0
         self._evasive = bool(evasive)
         if math.isfinite(raw_m):
             self._raw = raw_m
@@ -136,6 +151,16 @@ class LateralReferenceShaper:
         step = dt_s / self.params.weight_time_s * (4.0 if self._evasive else 1.0)
         self._phi = min(self._phi + step, 1.0) if engaged else max(self._phi - step, 0.0)
 
+    def move_rate_bound_mps(self, speed_mps: float) -> float:
+        """The ramp's rate bound [m/s] from the lateral acceleration the curve leaves:
+        a_move T_f e (module doc); unbounded without the filter (T_f = 0)."""
+        p = self.params
+        if p.filter_s <= 0.0:
+            return math.inf
+        curve = speed_mps * speed_mps * abs(self._curvature)
+        a_move = max(p.max_lat_acc_mps2 - curve, p.min_move_lat_acc_mps2)
+        return a_move * p.filter_s * math.e
+
     def _advance(self, dt_s: float, speed_mps: float, rate_scale: float) -> None:
         p = self.params
         tf = p.filter_s
@@ -145,7 +170,7 @@ class LateralReferenceShaper:
         if self._evasive:
             rate = min(p.evasive_rate_mps, v * p.evasive_heading_rad)
         else:
-            rate = min(p.rate_mps, v * p.heading_rad)
+            rate = min(p.rate_mps, v * p.heading_rad, self.move_rate_bound_mps(v))
         rate *= 1.0 if self._evasive else rate_scale
         max_step = rate * h
         r, yr, yd = self._ramp, self._yr, self._yr_rate
