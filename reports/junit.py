@@ -20,9 +20,9 @@ from reports.record import Failure
 from reports.tables import RunEntry
 
 _INVALID_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
-KEY_METRICS = ("collision", "min_gap_m", "min_ttc_s", "progress_m", "offroad_s",
-               "max_abs_lat_acc_mps2", "max_abs_jerk_mps3", "rms_lat_dev_m", "step_ms_p99",
-               "deadline_misses")
+KEY_METRICS = ("collision", "collision_disagreements", "min_gap_m", "min_ttc_s",
+               "progress_m", "offroad_s", "max_abs_lat_acc_mps2", "max_abs_jerk_mps3",
+               "rms_lat_dev_m", "step_ms_p99", "deadline_misses")
 
 
 def xml_text(text: str) -> str:

@@ -1,7 +1,9 @@
 """At-fault collisions as nuPlan classifies them (reports.metrics.collisions), on hand-made
 typed records: one collision of every class, each classified and judged at fault or not;
 the lane test (within one lane, across a junction, straddling two lanes, off the road);
-episodes; SUMO's collider/victim beside each; the default criterion."""
+episodes; the swept test between rows; SUMO's collider/victim beside each, and the
+disagreements between SUMO's report and the boxes (listed, never counted when only SUMO
+saw one); the default criterion."""
 
 from __future__ import annotations
 
@@ -9,6 +11,7 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,13 +27,18 @@ from synthetic_runs import (
 )
 
 from reports.metrics.collisions import (
+    MONITOR,
+    OVERLAP,
+    SWEPT,
     CollisionClass,
     CollisionEvent,
+    CollisionJudgement,
     classify_collisions,
+    judge_collisions,
     segment_hits_box,
 )
 from reports.metrics.context import build_context
-from reports.metrics.geometry import box_corners, boxes_overlap
+from reports.metrics.geometry import box_corners, box_distance_reference, boxes_overlap
 from reports.metrics.lane_occupancy import LaneTopology, points_in_lane
 from reports.record import (
     LaneRecord,
@@ -40,6 +48,7 @@ from reports.record import (
     RunRecord,
     SumoCollision,
 )
+from reports.record.verdict import GEOMETRY_ONLY, SUMO_ONLY, CollisionDisagreement
 
 DT = 0.05
 # the synthetic ego (4.6 m x 1.8 m, box centre at the CG) with its rear axle 1.4 m back
@@ -62,10 +71,11 @@ class Other:
 def scene(ego_x0_m: float, ego_y_m: float, ego_speed_mps: float, others: Sequence[Other], *,
           duration_s: float = 3.0, ego_vy_mps: float = 0.0,
           sumo: tuple[SumoCollision, ...] = (), road: RoadRecord | None = None,
-          ego_box: object = AXLE_EGO, neighbours: bool = True) -> RunRecord:
+          ego_box: object = AXLE_EGO, neighbours: bool = True, dt_s: float = DT) -> RunRecord:
     """A record of the ego at constant speed along +X (drifting ``ego_vy_mps`` across) and
-    ``others``; the monitor's overlap flags set where the boxes overlap."""
-    t = times(duration_s, DT)
+    ``others``, sampled every ``dt_s``; the monitor's overlap flags set where the boxes
+    overlap (and SUMO's flags where ``sumo`` reports)."""
+    t = times(duration_s, dt_s)
     n = len(t)
     x = ego_x0_m + ego_speed_mps * t
     y = ego_y_m + ego_vy_mps * t
@@ -93,7 +103,7 @@ def scene(ego_x0_m: float, ego_y_m: float, ego_speed_mps: float, others: Sequenc
     nbs = NeighbourColumns(**{name: np.concatenate([getattr(p, name) for p in parts])
                               for name, _ in NeighbourColumns.allocate(0).columns()}) \
         if parts and neighbours else NeighbourColumns.allocate(0)
-    info = base_info("collision", ego=ego_box, step_s=DT)
+    info = base_info("collision", ego=ego_box, step_s=dt_s)
     return make_record(trace, info=info, road=road or straight_road(2000.0, n_lanes=3),
                        neighbours=nbs, outcome=RunOutcome(sim_time_s=float(t[-1]), wall_s=1.0,
                                                           steps=n, sumo_collisions=sumo))
@@ -101,6 +111,10 @@ def scene(ego_x0_m: float, ego_y_m: float, ego_speed_mps: float, others: Sequenc
 
 def events(record: RunRecord) -> tuple[CollisionEvent, ...]:
     return classify_collisions(build_context(record))
+
+
+def judged(record: RunRecord) -> CollisionJudgement:
+    return judge_collisions(build_context(record))
 
 
 def only(record: RunRecord) -> CollisionEvent:
@@ -185,33 +199,50 @@ def test_active_lateral_with_a_corner_off_the_road_is_at_fault() -> None:
         CollisionClass.ACTIVE_LATERAL, False, True)
 
 
-def test_unclassified_sumo_report_without_the_vehicle_is_at_fault() -> None:
+def test_a_sumo_report_without_the_vehicle_is_no_collision_but_listed() -> None:
+    """SUMO reports a vehicle the record never saw: nothing the boxes show, so no
+    collision; the report is a 'sumo_only' disagreement without a gap (not recorded)."""
     rec = scene(0.0, 0.0, 20.0, [], sumo=(SumoCollision(1.0, "ego", "ghost", "collision"),))
-    e = only(rec)
-    assert (e.kind, e.at_fault, e.geometric, e.other_id, e.sumo_role) == (
-        CollisionClass.UNCLASSIFIED, True, False, "ghost", "collider")
+    result = judged(rec)
+    assert result.events == ()
+    (d,) = result.disagreements
+    assert (d.kind, d.other_id, d.sumo_reports, d.sumo_role) == (SUMO_ONLY, "ghost", 1,
+                                                                 "collider")
+    assert d.t_s == pytest.approx(1.0) and math.isnan(d.min_gap_m)
+    assert rec.trace.t_s[d.step] == pytest.approx(1.0)
 
 
 def test_monitor_overlap_without_recorded_neighbours_is_unclassified() -> None:
     rec = scene(0.0, 0.0, 20.0, [Other("lead", 25.0, 0.0, 10.0)], neighbours=False)
     e = only(rec)
-    assert (e.kind, e.at_fault, e.other_id) == (CollisionClass.UNCLASSIFIED, True, "lead")
+    assert (e.kind, e.at_fault, e.other_id, e.evidence) == (
+        CollisionClass.UNCLASSIFIED, True, "lead", MONITOR)
 
 
-def test_sumo_report_of_a_recorded_vehicle_without_overlap_is_classified() -> None:
-    """SUMO saw a collision our boxes did not (its own geometry): classified from the
-    neighbour at the reported time: the front edge is where the ego is nearest it."""
-    rec = scene(0.0, 0.0, 20.0, [Other("lead", 4.8, 0.0, 20.0)],
-                sumo=(SumoCollision(1.0, "ego", "lead", "collision"),))
-    e = only(rec)
-    assert not e.geometric and e.kind == CollisionClass.ACTIVE_FRONT and e.at_fault
-    assert e.t_s == pytest.approx(1.0)
-    # alongside, 2.5 m back: nearest to the ego's flank, not to its front corner (a car
-    # covering the front corner would count as front, in nuPlan's rule too)
-    beside = only(scene(0.0, 0.0, 20.0, [Other("side", -2.5, 2.0, 20.0)],
-                        sumo=(SumoCollision(1.0, "side", "ego", "collision"),)))
-    assert (beside.kind, beside.at_fault, beside.sumo_role) == (
-        CollisionClass.ACTIVE_LATERAL, False, "victim")
+def test_sumo_report_of_a_recorded_vehicle_the_boxes_do_not_touch_is_not_counted() -> None:
+    """SUMO saw a collision (its lane-based, 1-D check) that the boxes do not show: a lead
+    0.2 m ahead at the ego's speed, a car alongside 0.2 m across. Neither is a collision;
+    each is listed with the boxes' smallest distance over SUMO's reports."""
+    lead = scene(0.0, 0.0, 20.0, [Other("lead", 4.8, 0.0, 20.0)],
+                 sumo=(SumoCollision(1.0, "ego", "lead", "collision"),
+                       SumoCollision(1.1, "ego", "lead", "collision")))
+    side = scene(0.0, 0.0, 20.0, [Other("side", -2.5, 2.0, 20.0)],
+                 sumo=(SumoCollision(1.0, "side", "ego", "collision"),))
+    for rec, vid, role, reports in ((lead, "lead", "collider", 2), (side, "side", "victim", 1)):
+        result = judged(rec)
+        assert result.events == ()
+        (d,) = result.disagreements
+        assert (d.kind, d.other_id, d.sumo_role, d.sumo_reports) == (SUMO_ONLY, vid, role,
+                                                                     reports)
+        assert d.min_gap_m == pytest.approx(0.2)  # 4.8 − 4.6 along, 2.0 − 1.8 across
+        assert d.t_s == pytest.approx(1.0)
+        v = judge(rec, {"max_collision": 0.0}).verdict
+        assert v is not None
+        assert v.value("collision") == 0.0 and v.value("at_fault_collisions") == 0.0
+        assert not [f for f in v.failures if "collision" in f.criterion]
+        assert v.value("sumo_only_collisions") == 1.0 and v.value("collision_disagreements") == 1
+        assert v.value("sumo_collisions_reported") == reports
+        assert v.collision_disagreements == result.disagreements
 
 
 def test_sumo_time_is_taken_on_its_own_clock() -> None:
@@ -222,22 +253,30 @@ def test_sumo_time_is_taken_on_its_own_clock() -> None:
     assert only(rec).sumo_role == "collider"  # 102 s on SUMO's clock is 2 s in the trace
 
 
-def test_an_episode_is_located_at_its_earliest_evidence() -> None:
-    """SUMO reported the collision 0.3 s before the boxes touched in the record: the
-    collision is located at the report (where ``collision`` is too), classified at the
-    first contact."""
+def test_an_episode_is_located_at_its_earliest_geometric_evidence() -> None:
+    """SUMO reported the collision 0.3 s before the boxes touched in the record: the report
+    agrees with the collision (same vehicle, within 1 s) but does not locate it; the
+    monitor's overlap flag 0.3 s early does."""
     rec = scene(0.0, 0.0, 20.0, [Other("lead", 25.0, 0.0, 10.0)])
     contact = first_contact_t(rec)
     rec = scene(0.0, 0.0, 20.0, [Other("lead", 25.0, 0.0, 10.0)],
                 sumo=(SumoCollision(contact - 0.3, "ego", "lead", "collision"),))
-    e = only(rec)
-    assert e.t_s == pytest.approx(contact - 0.3)
-    assert rec.trace.t_s[e.contact_row] == pytest.approx(contact)
-    assert e.kind == CollisionClass.ACTIVE_FRONT and e.sumo_role == "collider"
+    result = judged(rec)
+    (e,) = result.events
+    assert e.t_s == pytest.approx(contact) and e.contact_row == e.row
+    assert e.kind == CollisionClass.ACTIVE_FRONT and e.evidence == OVERLAP
+    assert (e.sumo_role, e.sumo_reports) == ("collider", 1)
+    assert result.disagreements == ()
     v = judge(rec).verdict
     assert v is not None
     (fail,) = [f for f in v.failures if f.criterion == "max_at_fault_collisions"]
-    assert fail.t_s == pytest.approx(v.value("first_collision_t_s"))
+    assert fail.t_s == pytest.approx(v.value("first_collision_t_s")) == pytest.approx(contact)
+    flagged = int(np.argmin(np.abs(rec.trace.t_s - (contact - 0.3))))
+    rec.trace.safety.geom_collision[flagged] = True  # the monitor saw it first
+    rec.trace.safety.gap_vehicle[flagged] = "lead"
+    early = only(rec)
+    assert early.t_s == pytest.approx(contact - 0.3)
+    assert rec.trace.t_s[early.contact_row] == pytest.approx(contact)
 
 
 # ------------------------------------------------------------------ the rear-axle test
@@ -429,3 +468,201 @@ def test_every_collision_is_in_the_counts() -> None:
         assert (v.value("collision") == 1.0) == (v.value("collisions") >= 1.0)
         assert v.value("collisions") == sum(
             v.value(f"collisions_{k.value}") for k in CollisionClass)
+
+
+# ------------------------------------------------------------------ SUMO beside the boxes
+
+
+def test_a_collision_sumo_also_reports_agrees_and_is_not_listed() -> None:
+    rec = scene(0.0, 0.0, 20.0, [Other("lead", 25.0, 0.0, 10.0)],
+                sumo=(SumoCollision(2.1, "ego", "lead", "collision"),
+                      SumoCollision(2.2, "ego", "lead", "collision")))
+    result = judged(rec)
+    (e,) = result.events
+    assert (e.sumo_role, e.sumo_reports) == ("collider", 2)
+    (s,) = result.sumo
+    assert (s.other_id, s.reports, s.role) == ("lead", 2, "collider")
+    assert result.disagreements == ()
+
+
+def test_a_side_swipe_sumo_did_not_report_is_counted_and_listed() -> None:
+    """The lateral contact SUMO's lane-based check misses: counted (the boxes overlap),
+    listed as 'geometry_only' at the collision's row with no gap."""
+    rec = scene(0.0, 1.0, 20.0, [Other("neighbour", -0.5, LANE_WIDTH_M + 0.3, 20.0)],
+                ego_vy_mps=1.0)
+    result = judged(rec)
+    (e,) = result.events
+    (d,) = result.disagreements
+    assert (d.kind, d.other_id, d.step, d.sumo_reports, d.sumo_role) == (
+        GEOMETRY_ONLY, "neighbour", e.row, 0, "")
+    assert d.min_gap_m == 0.0 and d.t_s == pytest.approx(e.t_s)
+    v = judge(rec).verdict
+    assert v is not None
+    assert v.value("collisions") == 1.0 and v.value("at_fault_collisions") == 1.0
+    assert v.value("geometry_only_collisions") == 1.0 and v.value("sumo_only_collisions") == 0
+
+
+def test_sumo_reports_a_second_apart_are_one_listing_further_apart_two() -> None:
+    side = [Other("side", -2.5, 2.0, 20.0)]  # 0.2 m across, never touching
+    burst = tuple(SumoCollision(1.0 + 0.1 * k, "side", "ego", "collision") for k in range(5))
+    (one,) = judged(scene(0.0, 0.0, 20.0, side, sumo=burst)).disagreements
+    assert one.sumo_reports == 5
+    assert (one.t_s, one.last_t_s) == (pytest.approx(1.0), pytest.approx(1.4))
+    later = burst + (SumoCollision(2.6, "ego", "side", "collision"),)
+    two = judged(scene(0.0, 0.0, 20.0, side, sumo=later)).disagreements
+    assert [(d.t_s, d.sumo_reports, d.sumo_role) for d in two] == [
+        (pytest.approx(1.0), 5, "victim"), (pytest.approx(2.6), 1, "collider")]
+
+
+def test_a_report_far_from_the_contact_is_both_listings() -> None:
+    """The boxes touch the lead at ~2 s; SUMO reports it at 0.2 s only: they do not agree
+    (more than 1 s apart), so SUMO's is 'sumo_only' and the contact 'geometry_only'."""
+    rec = scene(0.0, 0.0, 20.0, [Other("lead", 25.0, 0.0, 10.0)],
+                sumo=(SumoCollision(0.2, "ego", "lead", "collision"),))
+    result = judged(rec)
+    assert len(result.events) == 1
+    assert [d.kind for d in result.disagreements] == [SUMO_ONLY, GEOMETRY_ONLY]
+    assert result.disagreements[0].min_gap_m == pytest.approx(25.0 - 4.6 - 10.0 * 0.2, rel=1e-9)
+
+
+def test_a_sumo_flag_without_its_report_is_listed_unnamed() -> None:
+    rec = scene(0.0, 0.0, 20.0, [])
+    rec.trace.safety.sumo_collision[10] = True
+    (d,) = judged(rec).disagreements
+    assert (d.kind, d.other_id, d.step, d.sumo_reports, d.sumo_role) == (SUMO_ONLY, "", 10, 1,
+                                                                         "")
+
+
+def test_the_rerun_fixture_collision_agrees_and_without_its_overlap_is_sumo_only() -> None:
+    """rerun_fixtures' collision: the monitor flags an overlap (rows 100-104, no vehicle
+    named) and SUMO reports stalled0 at row 101: one collision, agreeing. Without the
+    monitor's flags only SUMO's report is left: no collision, one listing with the
+    boxes' distance at row 101."""
+    import rerun_fixtures as rf
+
+    rec = rf.make_record(collision=True)
+    v = rec.verdict
+    assert v is not None
+    assert v.value("collision") == 1.0 and v.value("collisions_unclassified") == 1.0
+    assert v.collision_disagreements == ()
+    rec.trace.safety.geom_collision[:] = False
+    rec = judge(dataclasses.replace(rec, verdict=None))
+    v = rec.verdict
+    assert v is not None
+    assert v.value("collision") == 0.0 and v.value("at_fault_collisions") == 0.0
+    (d,) = v.collision_disagreements
+    assert (d.kind, d.other_id, d.step, d.sumo_role, d.sumo_reports) == (
+        SUMO_ONLY, "stalled0", 101, "collider", 1)
+    ego = build_context(rec).corners_m[101]
+    stalled = box_corners(rf.STALLED_X, rf.LANE_Y[1], 0.0, 4.5, 1.8)
+    assert d.min_gap_m == pytest.approx(float(box_distance_reference(ego, stalled)))
+    assert d.ego_lane_index == int(rec.trace.ego.lane_index[101]) and d.other_lane_index == 1
+    assert v.status == "pass"  # the fixture passes every other criterion
+
+
+def test_disagreements_round_trip_through_run_json(tmp_path: Path) -> None:
+    from synthetic_runs import write_judged
+
+    from reports.record import load_run
+
+    rec = scene(0.0, 0.0, 20.0, [Other("side", -2.5, 2.0, 20.0)],
+                sumo=(SumoCollision(1.0, "side", "ego", "collision"),))
+    write_judged(rec, tmp_path / "run")
+    back = load_run(tmp_path / "run", trace=False, neighbours=False, arrays=False,
+                    series=False)
+    assert back.verdict is not None
+    (d,) = back.verdict.collision_disagreements
+    assert isinstance(d, CollisionDisagreement)
+    assert d == judged(rec).disagreements[0]
+
+
+def test_a_disagreement_is_validated() -> None:
+    ok = CollisionDisagreement(SUMO_ONLY, "s0", 3, 1.0, 1.5, sumo_reports=2,
+                               sumo_role="victim", min_gap_m=0.4)
+    assert ok.min_gap_m == 0.4
+    bad: list[dict[str, object]] = [
+        {"kind": "both"}, {"sumo_role": "bystander"}, {"step": -1}, {"last_t_s": 0.5},
+        {"t_s": math.nan}, {"min_gap_m": -0.1}, {"sumo_reports": 0},
+        {"kind": GEOMETRY_ONLY}]  # geometry_only with SUMO's reports
+    for change in bad:
+        with pytest.raises(ValueError):
+            dataclasses.replace(ok, **change)  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------ between two rows
+
+
+def test_a_contact_between_two_rows_is_found_by_the_swept_test() -> None:
+    """Sampled every 0.5 s at 20 m/s the ego moves 10 m a row: it drives through a
+    stalled car (centre 5 m ahead, then 5 m behind) without an overlapping row. The
+    swept test finds it, classified at the row before (stopped track: at fault); 2 m
+    across (0.2 m of clearance) it finds nothing."""
+    stalled = [Other("stalled0", 15.0, 0.0, 0.0, stalled=True)]
+    rec = scene(0.0, 0.0, 20.0, stalled, duration_s=2.0, dt_s=0.5)
+    assert not rec.trace.safety.geom_collision.any()
+    e = only(rec)
+    assert (e.evidence, e.kind, e.at_fault, e.other_id) == (SWEPT, CollisionClass.STOPPED_TRACK,
+                                                            True, "stalled0")
+    assert rec.trace.t_s[e.contact_row] == pytest.approx(1.0)  # ego at 20 m: 5 m past it
+    v = judge(rec).verdict
+    assert v is not None
+    assert v.value("swept_only_collisions") == 1.0 and v.value("collision") == 1.0
+    beside = [Other("stalled0", 15.0, 2.0, 0.0, stalled=True)]
+    assert events(scene(0.0, 0.0, 20.0, beside, duration_s=2.0, dt_s=0.5)) == ()
+
+
+def test_the_swept_test_adds_nothing_where_the_rows_overlap_or_stay_apart() -> None:
+    """Every contact of the finely sampled scenes is an overlapping row; passing 0.2 m
+    beside a car is no contact at any sampling."""
+    rec = scene(0.0, 0.0, 20.0, [Other("lead", 25.0, 0.0, 10.0)], duration_s=4.0)
+    assert only(rec).evidence == OVERLAP
+    for dt in (0.05, 0.2, 0.5):
+        close = scene(0.0, 0.0, 20.0, [Other("slow", 20.0, 2.0, 5.0)], duration_s=4.0,
+                      dt_s=dt)
+        assert events(close) == ()
+
+
+# ------------------------------------------------------------------ the loop's stop rule
+
+
+def _ego_at(x_m: float) -> object:
+    from suite.run.ego import EgoState
+
+    return EgoState(state=np.array([x_m, 0.0, 0.0, 10.0, 0.0, 0.0]), long_acc_mps2=0.0,
+                    lat_acc_mps2=0.0, steer_rad=0.0, torque_nm=0.0, s_m=x_m, lat_m=0.0,
+                    heading_err_rad=0.0)
+
+
+def test_only_a_geometric_contact_stops_the_run() -> None:
+    """The monitor: a SUMO report beside boxes 0.2 m apart is recorded, not a contact.
+    The stop rule: SUMO's flag never starts the 0.5 s grace; an overlap ends the run
+    0.5 s after it."""
+    from controllers.behaviour.types import Traffic
+    from controllers.plant.vehicle_model import VehicleParams
+    from suite.run.safety import SafetyMonitor, SafetySample
+    from suite.run.stop import COLLISION_GRACE_S, StandardStop
+    from suite.world.protocol import Scene
+
+    veh = VehicleParams()
+    monitor = SafetyMonitor(veh)
+    ego = _ego_at(100.0)
+    centre = 100.0 + veh.cg_to_box_centre_m
+    beside = Traffic(ids=("s0",), x_m=np.array([centre]),
+                     y_m=np.array([0.5 * veh.width_m + 0.9 + 0.2]), heading_rad=np.zeros(1),
+                     speed_mps=np.zeros(1), length_m=np.array([4.5]), width_m=np.array([1.8]),
+                     lane_index=np.zeros(1, dtype=np.int64), road_id=("e",),
+                     stalled=np.ones(1, dtype=bool))
+    hit = (SumoCollision(5.0, "s0", "ego", "collision"),)
+    sample = monitor.check(ego, Scene(t_s=5.0, traffic=beside, ego=None, collisions=hit))
+    assert sample.sumo_collision and not sample.geom_collision and not sample.collided
+    assert sample.min_gap_m == pytest.approx(0.2)
+
+    stop = StandardStop(reference_length_m=10_000.0)
+    sumo_only = SafetySample(0.2, "s0", geom_collision=False, sumo_collision=True)
+    for k in range(40):  # 2 s of SUMO reports: the run goes on
+        assert stop.check(5.0 + 0.05 * k, ego, sumo_only) is None
+    contact = SafetySample(0.0, "s0", geom_collision=True, sumo_collision=False)
+    assert stop.check(7.0, ego, contact) is None
+    clear = SafetySample(1.0, "s0", geom_collision=False, sumo_collision=False)
+    assert stop.check(7.0 + COLLISION_GRACE_S - 0.01, ego, clear) is None
+    assert stop.check(7.0 + COLLISION_GRACE_S, ego, clear) is not None

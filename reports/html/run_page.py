@@ -3,8 +3,10 @@
 Header: status, scenario, controller variant, back to the index, the run's ``.rrd``
 and directory and the command that opens the log. Then its failures (each criterion
 with value vs limit and where, ``id="failures"``), the error text of an error run, the
-metrics table (units, limits), the bird's-eye views (whole run and zoomed at the
-first failure or the closest approach) and the time series (:mod:`reports.html.runs`).
+collisions on which SUMO's report and the 2-D boxes disagree
+(``id="collision-disagreements"``, when there are any), the metrics table (units,
+limits), the bird's-eye views (whole run and zoomed at the first failure or the closest
+approach) and the time series (:mod:`reports.html.runs`).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from reports.html.charts import esc, fmt
 from reports.html.failures import badge, log_link, value_vs_limit, when
 from reports.html.links import STYLE, Links
 from reports.html.marks import Mark, failure_marks
-from reports.html.runs import metrics_table, time_series
+from reports.html.runs import collision_disagreements, metrics_table, time_series
 from reports.tables import RunEntry
 
 
@@ -67,5 +69,6 @@ def render_run_page(run: RunEntry, links: Links, index_title: str) -> str:
         f"{esc(index_title)}</a> · {log_link(run, links, from_page=True)} · "
         f"<a href=\"{esc(run_dir)}\">run directory</a> · <code>hwyeval view "
         f"{esc(run.run_dir.parent.name)}/{esc(run.run_dir.name)}</code></nav></header><main>",
-        _failures(run), mark_line, "".join(views), time_series(run, marks), metrics_table(run),
+        _failures(run), collision_disagreements(run), mark_line, "".join(views),
+        time_series(run, marks), metrics_table(run),
         "</main></body></html>"])

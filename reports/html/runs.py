@@ -17,6 +17,7 @@ from reports.html.charts import PALETTE, Line, Series, esc, fmt, line_chart
 from reports.html.marks import Mark
 from reports.metrics.evaluate import REQUIRED_METRICS
 from reports.record import RunRecord, Verdict
+from reports.record.verdict import SUMO_ONLY, CollisionDisagreement
 from reports.tables import RunEntry
 
 TTC_PLOT_CAP_S = 10.0
@@ -152,6 +153,8 @@ def time_series(run: RunEntry, marks: list[Mark]) -> str:
 
 
 KIND_ORDER = ("safety", "comfort", "tracking", "health", "timing")
+# shown beside the collision verdict: SUMO's report and where it disagrees with the boxes
+COLLISION_BESIDE = ("sumo_collisions_reported", "collision_disagreements")
 
 
 def metrics_table(run: RunEntry) -> str:
@@ -165,7 +168,7 @@ def metrics_table(run: RunEntry) -> str:
 
     limit_of = {metric: (crit, bound) for crit, (metric, bound) in CRITERIA_METRICS.items()}
     failed = {f.metric for f in verdict.failures}
-    shown = set(REQUIRED_METRICS) | set(limit_of) | failed
+    shown = set(REQUIRED_METRICS) | set(limit_of) | failed | set(COLLISION_BESIDE)
     rows = []
     for kind in KIND_ORDER:
         members = [m for m in verdict.metrics if m.kind == kind and m.name in shown]
@@ -183,3 +186,33 @@ def metrics_table(run: RunEntry) -> str:
                         f"<td>{esc(unit)}</td><td>{esc(lim)}</td></tr>")
     return ('<table class="metrics"><thead><tr><th>metric</th><th>value</th><th>unit</th>'
             f"<th>limit</th></tr></thead><tbody>{''.join(rows)}</tbody></table>")
+
+
+def _disagreement_row(d: CollisionDisagreement) -> str:
+    sumo_only = d.kind == SUMO_ONLY
+    what = "SUMO only (not counted)" if sumo_only else "boxes only (counted)"
+    role = f"{d.sumo_role} ({d.sumo_type})" if d.sumo_role else "–"
+    lanes = "/".join("?" if k < 0 else str(k) for k in (d.ego_lane_index, d.other_lane_index))
+    return (f'<tr data-kind="{esc(d.kind)}"><td class="name">{esc(what)}</td>'
+            f'<td class="name">{esc(d.other_id or "?")}</td><td>{fmt(d.t_s)}–{fmt(d.last_t_s)}'
+            f"</td><td>{d.step}</td><td>{d.sumo_reports}</td><td>{esc(role)}</td>"
+            f"<td>{fmt(d.min_gap_m, 3)}</td><td>{esc(lanes)}</td></tr>")
+
+
+def collision_disagreements(run: RunEntry) -> str:
+    """The collisions SUMO's report and the 2-D box test disagree on (``id=
+    "collision-disagreements"``; '' when they agree): SUMO-only reports are not counted,
+    contacts of the boxes SUMO did not report are (docs/metrics.md)."""
+    verdict = run.verdict
+    found = verdict.collision_disagreements if verdict is not None else ()
+    if not found:
+        return ""
+    head = "".join(f"<th>{h}</th>" for h in (
+        "disagreement", "vehicle", "t [s]", "step", "SUMO reports", "SUMO: the ego is",
+        "min box gap [m]", "lane ego/other"))
+    return ('<section id="collision-disagreements"><h2>Collisions: SUMO and the boxes '
+            "disagree</h2><p>The collision verdict rests on the 2-D boxes of the ego and the "
+            "other vehicle. SUMO, without its sublane model, judges collisions along the "
+            "lane only; its report stands beside the verdict.</p>"
+            f'<table class="metrics"><thead><tr>{head}</tr></thead><tbody>'
+            f"{''.join(_disagreement_row(d) for d in found)}</tbody></table></section>")

@@ -90,7 +90,7 @@ class Criteria:
     """Limits; ``None`` disables a criterion. Units are in the names."""
 
     max_at_fault_collisions: float | None = 0.0  # nuPlan's classes (metrics.collisions)
-    max_collision: float | None = None  # any contact: off by default, still reported
+    max_collision: float | None = None  # any 2-D box contact (not SUMO-only): off, reported
     max_offroad_s: float | None = 0.0
     min_ttc_s: float | None = 0.95
     min_progress_fraction: float | None = 0.5

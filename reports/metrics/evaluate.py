@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from reports.metrics.collisions import classify_collisions, collision_metrics
+from reports.metrics.collisions import CollisionJudgement, collision_metrics, judge_collisions
 from reports.metrics.comfort import comfort_metrics, comfort_series
 from reports.metrics.context import build_context
 from reports.metrics.criteria import Criteria, steps_failure
@@ -60,6 +60,13 @@ def criteria_for(record: RunRecord, criteria_overrides: Mapping[str, Any] | None
 
 def measure(record: RunRecord) -> tuple[list[Measured], SeriesColumns]:
     """Every metric of a record (NaN where not measurable) and its series."""
+    found, series, _ = measure_all(record)
+    return found, series
+
+
+def measure_all(record: RunRecord) -> tuple[list[Measured], SeriesColumns, CollisionJudgement]:
+    """:func:`measure` and the collision judgement its collision metrics come from (the
+    disagreements with SUMO's report go into the verdict)."""
     ctx = build_context(record)
     comfort = comfort_series(ctx)
     pairs = ttc_pairs(ctx)
@@ -71,11 +78,12 @@ def measure(record: RunRecord) -> tuple[list[Measured], SeriesColumns]:
         yaw_rate_radps=comfort.yaw_rate_radps, yaw_acc_radps2=comfort.yaw_acc_radps2,
         long_jerk_mps3=comfort.long_jerk_mps3, jerk_mps3=comfort.jerk_mps3,
         ttc_s=ahead, ttc_rear_s=behind, offroad_excess_m=excess, ellipse_margin=margin)
+    collisions = judge_collisions(ctx)
     found = (safety_metrics(ctx, ahead, behind, margin)
-             + collision_metrics(ctx, classify_collisions(ctx)) + drivable_metrics(ctx, excess)
+             + collision_metrics(ctx, collisions) + drivable_metrics(ctx, excess)
              + comfort_metrics(comfort) + tracking_metrics(ctx) + timing_metrics(ctx)
              + health_metrics(ctx))
-    return _report_order(found), series
+    return _report_order(found), series, collisions
 
 
 def _report_order(found: list[Measured]) -> list[Measured]:
@@ -96,10 +104,12 @@ def evaluate(record: RunRecord, criteria_overrides: Mapping[str, Any] | None = N
     Criteria: :func:`criteria_for`. Status: ``record.outcome.end`` when the run did not
     end 'ok' ('error' or 'timeout', judged on what was recorded), else 'fail' when any
     criterion failed and 'pass' otherwise. A run without trace rows fails ``steps``
-    first. Raises ValueError for invalid criteria.
+    first. The collision metrics rest on the 2-D boxes; where SUMO's collision report
+    disagrees with them is listed in ``Verdict.collision_disagreements``
+    (:mod:`reports.metrics.collisions`). Raises ValueError for invalid criteria.
     """
     limits = criteria_for(record, criteria_overrides)
-    found, series = measure(record)
+    found, series, collisions = measure_all(record)
     failures = limits.check(found, np.asarray(record.trace.t_s, dtype=np.float64))
     if len(record.trace) == 0:
         failures = (steps_failure(), *failures)
@@ -108,5 +118,6 @@ def evaluate(record: RunRecord, criteria_overrides: Mapping[str, Any] | None = N
     else:
         status = "fail" if failures else "pass"
     verdict = Verdict(status=status, metrics=tuple(m.metric for m in found),
-                      failures=failures, criteria=limits.as_dict())
+                      failures=failures, criteria=limits.as_dict(),
+                      collision_disagreements=collisions.disagreements)
     return Evaluation(verdict=verdict, series=series)

@@ -3,12 +3,14 @@
 Definitions (units in brackets; the drivable-area metrics are in
 :mod:`reports.metrics.drivable`, the TTC model in :mod:`reports.metrics.ttc`)
 -------------------------------------------------------------------------------
-collision [0/1]
-    1 if any step has ``geom_collision`` (ego box overlaps another box) or
-    ``sumo_collision`` (SUMO reported a collision involving the ego), else 0; its
-    step is the first such step. ``geom_collision_steps`` / ``sumo_collision_steps``
-    count the flagged steps, ``sumo_collisions_reported`` the collisions in
-    ``outcome.sumo_collisions``, ``first_collision_t_s`` [s] the time of the first one.
+geom_collision_steps / sumo_collision_steps / sumo_collisions_reported [-]
+    the steps the in-loop monitor flagged an overlap of the ego box with another box
+    (``geom_collision``), the steps SUMO reported a collision of the ego
+    (``sumo_collision``) and the collisions in SUMO's report (``outcome.sumo_collisions``).
+    SUMO's two are informational (better 'none'): without its sublane model SUMO judges
+    collisions along the lane only, so its report stands beside the verdict, never in
+    it. ``collision``, ``first_collision_t_s`` and the collision classes rest on the 2-D
+    boxes: :mod:`reports.metrics.collisions`.
 min_gap_m [m]
     min of the trace's ``min_gap_m`` (box-to-box distance to the nearest vehicle);
     +inf if no vehicle was ever near, NaN without trace rows.
@@ -30,15 +32,8 @@ from __future__ import annotations
 import numpy as np
 
 from reports.metrics.context import RunContext
-from reports.metrics.values import Measured, extreme, first_true, measured
-from reports.record.columns import BoolColumn, FloatColumn
-
-
-def collision_steps(ctx: RunContext) -> BoolColumn:
-    """Per trace row: the ego collided (geometric overlap or SUMO report)."""
-    safety = ctx.record.trace.safety
-    flags: BoolColumn = safety.geom_collision | safety.sumo_collision
-    return flags
+from reports.metrics.values import Measured, extreme, measured
+from reports.record.columns import FloatColumn
 
 
 def ellipse_margin_series(ctx: RunContext) -> FloatColumn:
@@ -77,25 +72,15 @@ def ellipse_margin_series(ctx: RunContext) -> FloatColumn:
     return out
 
 
-def _collision_metrics(ctx: RunContext) -> list[Measured]:
+def _collision_flags(ctx: RunContext) -> list[Measured]:
     safety = ctx.record.trace.safety
-    hit = collision_steps(ctx)
-    first = first_true(hit)
-    # increments: 1 at the first collision step, so they sum to the 0/1 value
-    once = np.zeros(ctx.n)
-    if first is not None:
-        once[first] = 1.0
     return [
-        measured("collision", 1.0 if first is not None else 0.0, "-", "safety", "lower",
-                 worst_step=first, increments=once),
         measured("geom_collision_steps", float(np.sum(safety.geom_collision)), "-", "safety",
                  "lower"),
         measured("sumo_collision_steps", float(np.sum(safety.sumo_collision)), "-", "safety",
-                 "lower"),
+                 "none"),
         measured("sumo_collisions_reported", float(len(ctx.record.outcome.sumo_collisions)),
-                 "-", "safety", "lower"),
-        measured("first_collision_t_s", float(ctx.t_s[first]) if first is not None
-                 else float("nan"), "s", "safety", "none", worst_step=first),
+                 "-", "safety", "none"),
     ]
 
 
@@ -130,11 +115,12 @@ def _ssm_metrics(ctx: RunContext) -> list[Measured]:
 
 def safety_metrics(ctx: RunContext, ttc_ahead_s: FloatColumn, ttc_behind_s: FloatColumn,
                    ellipse_margin: FloatColumn) -> list[Measured]:
-    """Collision, gap, TTC, SSM and ellipse metrics (see the module doc); the series are
+    """Collision flag counts, gap, TTC, SSM and ellipse metrics (see the module doc; the
+    collision verdict is :mod:`reports.metrics.collisions`); the series are
     those of :mod:`reports.metrics.ttc` and :func:`ellipse_margin_series`."""
     n = ctx.n
     margin, margin_row = extreme(ellipse_margin, "min")
-    out = _collision_metrics(ctx)
+    out = _collision_flags(ctx)
     out += [
         _min_of("min_gap_m", ctx.record.trace.safety.min_gap_m, n, "m", "safety.min_gap_m"),
         _min_of("min_ttc_s", ttc_ahead_s, n, "s", "series.ttc_s"),

@@ -13,6 +13,59 @@ from dataclasses import dataclass, field
 KINDS = ("safety", "comfort", "tracking", "timing", "health")
 BETTER = ("lower", "higher", "none")
 BOUNDS = ("max", "min")
+CROSSING_KINDS = ("lane", "junction")
+CROSSING_SIDES = ("left", "right", "end", "start")
+CORNERS = ("front-left", "rear-left", "rear-right", "front-right")
+
+
+@dataclass(frozen=True)
+class BoundaryCrossing:
+    """Which boundary of the drivable area the ego's box crossed, and by how much: the
+    edge nearest to its farthest corner at the row of the largest excess.
+
+    kind: 'lane' (a lane or internal junction lane of road.json: ``lane_id`` on
+        ``edge_id``) or 'junction' (the area between route edge ``edge_id``'s lane ends
+        and route edge ``to_edge_id``'s lane starts, where a lane ends or begins
+        beside another; ``lane_id`` '').
+    side: 'left' | 'right' edge (in the driving direction), 'end' | 'start' (the cross
+        section where the lane, or the junction's ``edge_id``, ends / begins).
+    excess_m: how far the corner was beyond it [m] (> 0); step / t_s: the trace row and
+        its time [s]; corner: which corner of the box (front-left, ...).
+    """
+
+    kind: str
+    lane_id: str
+    edge_id: str
+    side: str
+    excess_m: float
+    step: int
+    t_s: float
+    corner: str
+    to_edge_id: str = ""
+
+    def __post_init__(self) -> None:
+        if self.kind not in CROSSING_KINDS:
+            raise ValueError(f"BoundaryCrossing.kind must be one of {CROSSING_KINDS}, "
+                             f"got {self.kind!r}")
+        if self.side not in CROSSING_SIDES:
+            raise ValueError(f"BoundaryCrossing.side must be one of {CROSSING_SIDES}, "
+                             f"got {self.side!r}")
+        if self.corner not in CORNERS:
+            raise ValueError(f"BoundaryCrossing.corner must be one of {CORNERS}, "
+                             f"got {self.corner!r}")
+        if not (math.isfinite(self.excess_m) and self.excess_m > 0.0):
+            raise ValueError(f"BoundaryCrossing.excess_m must be finite and > 0, "
+                             f"got {self.excess_m!r}")
+        if self.step < 0:
+            raise ValueError(f"BoundaryCrossing.step must be >= 0, got {self.step!r}")
+
+    @property
+    def text(self) -> str:
+        """``right edge of lane a_0 by 0.42 m`` (for reading only, never parsed)."""
+        where = (f"lane {self.lane_id}" if self.kind == "lane"
+                 else f"junction {self.edge_id} \u2192 {self.to_edge_id}")
+        what = f"{self.side} edge" if self.side in ("left", "right") else self.side
+        return f"{what} of {where} by {fmt_value(self.excess_m)} m"
 
 
 @dataclass(frozen=True)
@@ -25,6 +78,8 @@ class MetricValue:
     better: which direction is an improvement ('none': informational).
     worst_step: trace row where the value was attained (None for aggregates).
     series: the ``SeriesColumns``/trace column it is an extreme of ('' if none).
+    crossing: for the off-road metrics, the drivable-area boundary crossed farthest
+        (None when the ego stayed inside; :class:`BoundaryCrossing`).
     """
 
     name: str
@@ -34,6 +89,7 @@ class MetricValue:
     better: str = "none"
     worst_step: int | None = None
     series: str = ""
+    crossing: BoundaryCrossing | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -87,6 +143,8 @@ class Verdict:
     metrics: tuple[MetricValue, ...] = ()
     failures: tuple[Failure, ...] = ()
     criteria: dict[str, float | None] = field(default_factory=dict)
+    # where SUMO's collision report and the 2-D box test disagree (metrics.md)
+    collision_disagreements: tuple[CollisionDisagreement, ...] = ()
 
     def metric(self, name: str) -> MetricValue | None:
         for m in self.metrics:
@@ -115,3 +173,71 @@ def fmt_value(value: float) -> str:
     if math.isinf(value):
         return "inf" if value > 0 else "-inf"
     return f"{value:.4g}"
+
+
+# Where SUMO's collision report and the 2-D box test of the ego disagree
+# (reports.metrics.collisions; docs/metrics.md "How a collision is judged").
+SUMO_ONLY = "sumo_only"
+GEOMETRY_ONLY = "geometry_only"
+DISAGREEMENT_KINDS = (SUMO_ONLY, GEOMETRY_ONLY)
+SUMO_ROLES = ("collider", "victim", "")
+
+
+@dataclass(frozen=True)
+class CollisionDisagreement:
+    """A collision of the ego that SUMO's report and the 2-D box test disagree on.
+
+    kind: 'sumo_only': SUMO reported a collision of the ego with ``other_id`` that the
+        boxes do not show (without its sublane model SUMO judges along the lane only:
+        the same lane and overlapping lane positions), so it is not counted in the
+        verdict; 'geometry_only': the boxes of the ego and ``other_id`` overlapped (or
+        touched between two trace rows) and SUMO reported no collision with it; it is
+        counted.
+    step / t_s: the trace row and its time [s] of the first evidence (SUMO's first
+        report, or the first contact); last_t_s [s]: the time of the last (>= t_s).
+    sumo_reports: SUMO's reports in it (a SUMO flag without its report counts one);
+        0 for 'geometry_only'.
+    sumo_role / sumo_type: the ego's role in SUMO's first report ('collider',
+        'victim'; '' without a report) and SUMO's collision type.
+    min_gap_m: the smallest box-to-box distance [m] between the ego and ``other_id``
+        over the rows from ``t_s`` to ``last_t_s`` (0 for 'geometry_only'; NaN where
+        the other vehicle was not recorded then).
+    ego_lane_index / other_lane_index: SUMO's lane indices of both at ``step`` (-1:
+        unknown).
+    """
+
+    kind: str
+    other_id: str
+    step: int
+    t_s: float
+    last_t_s: float
+    sumo_reports: int = 0
+    sumo_role: str = ""
+    sumo_type: str = ""
+    min_gap_m: float = math.nan
+    ego_lane_index: int = -1
+    other_lane_index: int = -1
+
+    def __post_init__(self) -> None:
+        if self.kind not in DISAGREEMENT_KINDS:
+            raise ValueError(f"CollisionDisagreement.kind must be one of "
+                             f"{DISAGREEMENT_KINDS}, got {self.kind!r}")
+        if self.sumo_role not in SUMO_ROLES:
+            raise ValueError(f"CollisionDisagreement.sumo_role must be one of {SUMO_ROLES}, "
+                             f"got {self.sumo_role!r}")
+        if self.step < 0 or self.sumo_reports < 0:
+            raise ValueError("CollisionDisagreement: step and sumo_reports must be >= 0, "
+                             f"got {self.step!r}, {self.sumo_reports!r}")
+        if not (math.isfinite(self.t_s) and math.isfinite(self.last_t_s)
+                and self.last_t_s >= self.t_s):
+            raise ValueError("CollisionDisagreement: t_s and last_t_s must be finite with "
+                             f"last_t_s >= t_s, got {self.t_s!r}, {self.last_t_s!r}")
+        if self.min_gap_m < 0.0:  # NaN (not recorded) passes
+            raise ValueError(f"CollisionDisagreement.min_gap_m must be >= 0 or NaN, "
+                             f"got {self.min_gap_m!r}")
+        if self.kind == GEOMETRY_ONLY and (self.sumo_reports or self.sumo_role):
+            raise ValueError("CollisionDisagreement: a 'geometry_only' one has no SUMO "
+                             f"report, got {self.sumo_reports!r} ({self.sumo_role!r})")
+        if self.kind == SUMO_ONLY and self.sumo_reports < 1:
+            raise ValueError("CollisionDisagreement: a 'sumo_only' one has at least one "
+                             f"SUMO report, got {self.sumo_reports!r}")

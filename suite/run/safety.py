@@ -26,7 +26,8 @@ load_kernels()
 class SafetySample:
     """min_gap_m: ego box to the nearest other box [m] (0 on contact, inf if none);
     gap_vehicle: its id; geom_collision: the boxes overlap; sumo_collision: SUMO reported
-    a collision of the ego this step."""
+    a collision of the ego this step (recorded beside it: SUMO without its sublane model
+    judges along the lane only, docs/metrics.md)."""
 
     min_gap_m: float
     gap_vehicle: str
@@ -35,7 +36,9 @@ class SafetySample:
 
     @property
     def collided(self) -> bool:
-        return self.geom_collision or self.sumo_collision
+        """The ego is in contact with another vehicle: the 2-D boxes overlap. SUMO's
+        report alone is no contact (it neither stops a run nor changes what follows)."""
+        return self.geom_collision
 
 
 class SafetyMonitor:

@@ -9,7 +9,7 @@ from typing import Protocol
 from suite.run.ego import EgoState
 from suite.run.safety import SafetySample
 
-COLLISION_GRACE_S = 0.5  # keep recording this long after the first collision
+COLLISION_GRACE_S = 0.5  # keep recording this long after the first geometric contact
 END_OF_ROUTE_MARGIN_M = 30.0  # stop this far before the reference path's end
 
 
@@ -26,7 +26,11 @@ class StopRule(Protocol):
 @dataclass
 class StandardStop:
     """Stop 0.5 s after the first collision, near the end of the route, or raise
-    :class:`ScenarioTimeout` once ``wall_budget_s`` [s] of wall time is spent."""
+    :class:`ScenarioTimeout` once ``wall_budget_s`` [s] of wall time is spent.
+
+    A collision here is a geometric contact: the monitor's 2-D box overlap
+    (:attr:`SafetySample.collided`). A collision SUMO reports without one (its 1-D,
+    along-the-lane check) neither starts the grace period nor ends the run."""
 
     reference_length_m: float
     wall_budget_s: float | None = None

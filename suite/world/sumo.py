@@ -20,6 +20,12 @@ pushed before every SUMO step, and between SUMO steps the scene holds SUMO's las
 (its view of the ego, no new collisions) with the other vehicles extrapolated at
 constant speed along their headings. When SUMO's driver drives the ego it is the ego's
 plant, so SUMO then steps every ``step_s``.
+
+Collisions: SUMO runs with ``--collision.action warn`` and ``--collision.stoptime 0``, so
+a collision it registers is only reported (``Scene.collisions``, collisions.xml): no
+vehicle is teleported, removed or stopped. Without its sublane model SUMO judges
+collisions along the lane (same lane, overlapping lane positions, 1-D), so its report is
+recorded beside the 2-D box test the verdict rests on (docs/metrics.md).
 """
 
 from __future__ import annotations
@@ -185,7 +191,10 @@ class SumoWorld:
             sumo_binary(), "-n", str(sc.net_path), "-r", str(routes),
             "--step-length", repr(self.rate.world_step_s), "--seed", str(seed),
             "--time-to-teleport", "-1", "--collision.mingap-factor", "0",
-            "--collision.action", "warn", "--collision.check-junctions", "true",
+            # SUMO's collision check is recorded beside ours, never acted on: 'warn' reports
+            # it and alters no vehicle (no teleport, no removal), stoptime 0 stops none.
+            "--collision.action", "warn", "--collision.stoptime", "0",
+            "--collision.check-junctions", "true",
             "--collision-output", str(self.work_dir / "collisions.xml"),
             "--no-step-log", "true", "--no-warnings", "true", "--duration-log.disable", "true",
             "--default.action-step-length", repr(self.rate.world_step_s),
