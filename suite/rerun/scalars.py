@@ -95,8 +95,11 @@ def log_safety(log: RunLog) -> None:
     s = log.scalar
     s("/safety/ttc_s", trace.safety.ssm_ttc_s, "TTC [s] (SUMO SSM)", (255, 90, 90, 255))
     s("/safety/min_gap_m", trace.safety.min_gap_m, "min gap [m]", (255, 200, 60, 255))
-    collided = trace.safety.geom_collision | trace.safety.sumo_collision
-    s("/safety/collision", collided.astype(float), "collision", (255, 0, 0, 255))
+    # the verdict's contact is the boxes'; SUMO's lane-based report is its own series
+    s("/safety/collision", trace.safety.geom_collision.astype(float), "collision (boxes)",
+      (255, 0, 0, 255))
+    s("/safety/collision/sumo", trace.safety.sumo_collision.astype(float),
+      "SUMO's collision report (lane-based)", (255, 120, 120, 255))
     if series is None:
         return
     s("/safety/ttc_s/ahead", _capped_ttc(series.ttc_s),
