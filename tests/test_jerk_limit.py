@@ -1,6 +1,7 @@
 """The longitudinal jerk limiter (controllers.two_loop.jerk): its rate law, its bypass,
-and what it buys on the plant: a stalled car close ahead at the start, passed within
-nuPlan's jerk limits, which the unlimited command breaks."""
+its start and the actuators' range, what it buys on the plant (a stalled car close ahead
+at the start, passed within nuPlan's jerk limits, which the unlimited command breaks),
+and when its bound is raised: an emergency, for an obstacle only, recorded with it."""
 
 from __future__ import annotations
 
@@ -9,12 +10,15 @@ from typing import Any
 import numpy as np
 import pytest
 
-from controllers.behaviour.ellipses import FrenetVehicle
-from controllers.behaviour.types import LaneContext, LaneSlot
+from controllers.behaviour.ellipses import FrenetVehicle, ellipse_semi_axes
+from controllers.behaviour.types import LaneContext, LaneSlot, ObstaclePolicy, Obstacles
 from controllers.params import ParamError
+from controllers.path.frenet import FrenetPath
 from controllers.sim.closed_loop import simulate
 from controllers.two_loop.controller import make_two_loop
+from controllers.two_loop.fallback import FallbackParams, MinimalRiskManeuver, planner_emergency
 from controllers.two_loop.jerk import JerkLimiter, JerkLimitParams
+from controllers.two_loop.outer.protocol import OuterPlan
 from reports.metrics.comfort import sg
 
 M_R = 1500.0 * 0.3  # torque per unit acceleration [N m / (m/s²)]
@@ -87,3 +91,94 @@ def test_close_stalled_car_is_evaded_within_the_jerk_limit_only_with_the_limiter
             for k, tr in (("limited", limited), ("raw", raw))}
     assert jerk["limited"] <= 4.13 < jerk["raw"], jerk  # nuPlan's longitudinal jerk bound
     assert float(np.max(np.abs(limited["lat_acc_mps2"]))) <= 4.89
+
+
+# ------------------------------------------------ start, actuator range, emergencies
+def test_first_command_is_limited_from_the_initial_torque_and_the_range_holds() -> None:
+    """A run starts from the torque that holds its speed; requests beyond the actuators'
+    range are handed out (and remembered) at the range, so the limiter never winds up."""
+    lim = JerkLimiter(JerkLimitParams())  # 3 m/s³ both ways
+    lim.reset(100.0, (-4500.0, 3000.0))
+    step = 3.0 * M_R * DT
+    assert lim.limit(-9000.0, DT, M_R) == pytest.approx(100.0 - step)  # not -9000 at once
+    out = [lim.limit(-9000.0, DT, M_R) for _ in range(400)]
+    assert min(out) == -4500.0 and out[-1] == -4500.0  # 10 m/s² brake, no further
+    # Release: from -4500 at once (wound up at -9000 it would take 3.3 s to get there).
+    assert lim.limit(0.0, DT, M_R) == pytest.approx(-4500.0 + step)
+    assert lim.follow(5000.0) == 3000.0 and lim.last_torque_nm == 3000.0
+    assert np.isnan(lim.limit(float("nan"), DT, M_R))
+    with pytest.raises(ValueError, match="torque_range_nm"):
+        lim.reset(0.0, (10.0, -10.0))
+
+
+def _plan(v_now: float, decel: float) -> OuterPlan:
+    """A 2.4 s plan at constant deceleration from v_now (the plan's V an input)."""
+    tau = np.linspace(0.0, 2.4, 21)
+    v = np.maximum(v_now - decel * tau[:-1], 0.0)
+    states = np.column_stack([100.0 + np.concatenate([[0.0], np.cumsum(v * np.diff(tau))]),
+                              np.zeros(21), np.zeros(21)])
+    return OuterPlan(tau, states, v, np.zeros(20), 0.0, False, 0, 0.0)
+
+
+def _stopped_car(ds_m: float, dy_m: float = 0.0) -> Obstacles:
+    policy = ObstaclePolicy()
+    sa, sb = ellipse_semi_axes(4.8, 1.9, 4.8, 1.9, policy)
+    return Obstacles(s_m=np.array([100.0 + ds_m]), y_m=np.array([dy_m]),
+                     speed_s_mps=np.zeros(1), speed_y_mps=np.zeros(1),
+                     semi_a_m=np.array([sa]), semi_b_m=np.array([sb]))
+
+
+def test_emergency_needs_both_a_hard_braking_plan_and_an_obstacle() -> None:
+    """Known answers at 25 m/s, the ego's CG at s = 100 m: a plan braking at 6 m/s² with
+    nothing ahead (a lower set speed, a restart) is no emergency; a stalled car 60 m ahead
+    in the lane needs 25² / (2 (60 - A)) m/s² and makes the same plan one, recorded with
+    its distance and offset; the same car with a plan that does not brake (it is being
+    evaded) is none; a car in the next lane covers nothing."""
+    fb = FallbackParams()
+    x0 = np.array([100.0, 0.0, 0.0])
+    hard, cruise = _plan(25.0, 6.0), _plan(25.0, 0.0)
+    assert not planner_emergency(fb, x0, 25.0, hard, Obstacles.empty()).active
+    car = _stopped_car(60.0)
+    em = planner_emergency(fb, x0, 25.0, hard, car, ObstaclePolicy())
+    need = 25.0**2 / (2.0 * (60.0 - float(car.semi_a_m[0])))
+    assert em.active and em.decel_mps2 == pytest.approx(need)
+    assert em.ds_m == pytest.approx(60.0) and em.dy_m == pytest.approx(0.0)
+    assert em.jerk_mps3 == fb.emergency_jerk_mps3
+    assert not planner_emergency(fb, x0, 25.0, cruise, car, ObstaclePolicy()).active
+    beside = _stopped_car(60.0, 3.5)
+    assert not planner_emergency(fb, x0, 25.0, hard, beside, ObstaclePolicy()).active
+    far = _stopped_car(300.0)  # 25² / (2 (300 - A)) ~ 1.1 m/s²: comfortable, none
+    assert not planner_emergency(fb, x0, 25.0, hard, far, ObstaclePolicy()).active
+
+
+def test_minimal_risk_manoeuvre_records_the_obstacle_it_braces_for() -> None:
+    fb = FallbackParams()
+    mrm = MinimalRiskManeuver(fb, 1.5, ObstaclePolicy())
+    mrm.engage(0.0, 25.0, 0.0)
+    path = FrenetPath.cached(np.array([[0.0, 0.0], [1500.0, 0.0]]))
+    x0 = np.array([100.0, 0.5, 0.0])
+    mrm.plan(path, x0, 0.0, 25.0, DT, 2.4, 20, _stopped_car(40.0, 0.2))
+    em = mrm.emergency
+    assert em.active and em.ds_m == pytest.approx(40.0) and em.dy_m == pytest.approx(-0.3)
+    assert mrm.ramp.decel_mps2 == pytest.approx(min(1.2 * em.decel_mps2,
+                                                    fb.emergency_decel_mps2))
+    mrm.plan(path, x0, 0.0, 25.0, DT, 2.4, 20, Obstacles.empty())
+    assert not mrm.emergency.active and mrm.ramp.decel_mps2 == fb.decel_mps2
+
+
+def test_a_stalled_car_still_triggers_emergency_braking_in_closed_loop() -> None:
+    """The paper's conversion without preview on the R = 400 m curve plans a hard stop in
+    front of the stalled car at s = 150 m (tests/test_two_loop_closed_loop.py): the
+    limiter lets it brake at the emergency rate, and the trace says which car: 150 m
+    minus the ego's s ahead, on the ego's line."""
+    th = np.linspace(0.0, 1.5, 300)
+    curve = np.column_stack([400.0 * np.sin(th), 400.0 * (1.0 - np.cos(th))])
+    tr = simulate(make_two_loop({"inner": {"preview": False, "feedforward": False}}), curve,
+                  [FrenetVehicle(150.0, 0.0)], duration_s=14.0, dt=DT, pass_side=1)
+    em = tr["emergency"].astype(bool)
+    assert em.any() and not tr["box_overlap"].any()
+    assert np.all(np.isnan(tr["emergency_ds_m"][~em]))
+    np.testing.assert_allclose(tr["emergency_ds_m"][em], 150.0 - tr["s_m"][em], atol=0.5)
+    np.testing.assert_allclose(tr["emergency_dy_m"][em], -tr["y_m"][em], atol=0.5)
+    assert np.all(tr["emergency_decel_mps2"][em] * 1.2 > FallbackParams().comfort_decel_mps2)
+    assert float(np.min(tr["long_acc_mps2"])) < -6.0  # it does brake hard

@@ -323,6 +323,22 @@ LANE = 3.5
 RELEASE_PAST_M = 15.0
 
 
+def stretch_s(ctl: object, speed: float, kappa: float) -> float:
+    """How much longer [s] the lateral-reference shaper takes for the lane's move on a
+    curve of curvature ``kappa`` than on a straight road at ``speed``: its ramp rate is
+    bounded by what v² kappa leaves of the lateral acceleration (two_loop/lateral.py),
+    so a pass on a curve is stretched and the emulated behaviour holds the pass lane
+    that much longer (the behaviour layer plans the stretch the same way)."""
+    from controllers.two_loop.lateral import LateralReferenceShaper
+
+    p = ctl.params.lateral  # type: ignore[attr-defined]
+    shaper = LateralReferenceShaper(p)
+    nominal = min(p.rate_mps, speed * p.heading_rad)
+    shaper.update(0.0, None, 0.0, speed, 1.0, curvature_1pm=kappa)
+    curved = min(nominal, shaper.move_rate_bound_mps(speed))
+    return LANE / curved - LANE / nominal
+
+
 @pytest.mark.parametrize("road", ["straight", "curve"])
 @pytest.mark.parametrize("speed", [20.0, 25.0, 30.0])
 def test_pass_stalled_car_with_lateral_reference(road: str, speed: float) -> None:
@@ -334,8 +350,10 @@ def test_pass_stalled_car_with_lateral_reference(road: str, speed: float) -> Non
     lane centre at the end."""
     obstacle_s = 150.0
     ctl = make_two_loop({})
+    release_m = RELEASE_PAST_M + speed * stretch_s(ctl, speed, 0.0 if road == "straight"
+                                                    else 1.0 / 400.0)
     fn = pass_reference(obstacle_s, 1, LANE, ctl.params.policy.detection_distance_m,
-                        RELEASE_PAST_M)
+                        release_m)
     duration = (obstacle_s + RELEASE_PAST_M + 8.0 * speed) / speed + 1.0
     tr = simulate(ctl, STRAIGHT if road == "straight" else CURVE,
                   [FrenetVehicle(obstacle_s, 0.0)], duration_s=duration, dt=DT,
@@ -349,7 +367,7 @@ def test_pass_stalled_car_with_lateral_reference(road: str, speed: float) -> Non
     t, s, y = tr["t_s"], tr["s_m"], tr["y_m"]
     raw = tr["lateral_reference_m"]
     assert raw.max() == LANE and raw[-1] == 0.0
-    t_release = t[np.argmax(s > obstacle_s + RELEASE_PAST_M)]
+    t_release = t[np.argmax(s > obstacle_s + release_m)]
     hold = (t > t_release - 0.5) & (t <= t_release)
     assert np.max(np.abs(y[hold] - LANE)) <= 0.3
     assert np.max(np.abs(y[t > t[-1] - 1.0])) <= 0.3
@@ -391,7 +409,9 @@ def test_step_sets_every_diagnostic_field(monkeypatch: pytest.MonkeyPatch) -> No
                   lateral_fn=lambda t, s, y: (1, 3.5))
     assert given and all(g == names for g in given), names - set.intersection(*given)
     # Defaults are NaN, 0 or False: finite and non-zero at some step is set for real.
-    for name in names - {"fallback", "guard_fired", "mrm"}:  # rare events: not expected here
+    rare = {"fallback", "guard_fired", "mrm", "emergency", "emergency_decel_mps2",
+            "emergency_ds_m", "emergency_dy_m"}  # rare events: not expected here
+    for name in names - rare:
         values = tr[name]
         assert np.all(np.isfinite(values)), name
         assert np.any(values != 0.0), name

@@ -10,12 +10,15 @@ Per control period (:meth:`TwoLoopController.step`):
    drive instead of the planner, and hands over with a blend;
 4. outer planner (:class:`controllers.two_loop.outer.protocol.OuterPlanner`: C/GMRES
    for ``two_loop``, Ipopt for ``ipopt_nmpc``): a plan from x0, the obstacles, the
-   target speed, yr and Cy;
+   target speed (through its jerk-limited ramp, started at the measured speed), yr and
+   Cy;
 5. inner preview tracker (:mod:`controllers.two_loop.tracker`): conversion (13)(14),
    preview and corrections (38)-(41);
 6. longitudinal jerk limiter (:mod:`controllers.two_loop.jerk`): the torque's rate is
-   bounded (during the manoeuvre below at least at that manoeuvre's own jerk bound;
-   bypassed during the launch);
+   bounded, from the torque that holds the initial speed and within the actuators'
+   range (during the manoeuvre below at least at that manoeuvre's own jerk bound;
+   raised for an emergency, which is an obstacle's only:
+   :func:`controllers.two_loop.fallback.planner_emergency`; bypassed during the launch);
 7. minimal-risk manoeuvre (:mod:`controllers.two_loop.fallback`): when the planner
    fails (or a command is non-finite), a committed, jerk-limited braking plan in the
    lane replaces the planner's for at least its hold time; the planner then restarts at
@@ -39,13 +42,24 @@ import numpy as np
 from controllers.behaviour.types import ObstaclePolicy
 from controllers.params import to_dict
 from controllers.path.frenet import FrenetPath, _points_many, path_gamma, path_project_local
+from controllers.plant.limited import resistance_n
 from controllers.protocol import Command, Observation, Obstacles, ScenarioContext, StepDiagnostics
 from controllers.two_loop.diagnostics import TwoLoopDiagnostics
-from controllers.two_loop.fallback import MinimalRiskManeuver, onset_jerk_mps3
+from controllers.two_loop.fallback import (
+    NO_EMERGENCY,
+    Emergency,
+    MinimalRiskManeuver,
+    planner_emergency,
+)
 from controllers.two_loop.jerk import JerkLimiter
 from controllers.two_loop.lateral import LateralReferenceShaper
 from controllers.two_loop.launch import LaunchSupervisor
-from controllers.two_loop.outer.protocol import OuterPlan, OuterPlanner, PlannerFactory
+from controllers.two_loop.outer.protocol import (
+    CruiseAware,
+    OuterPlan,
+    OuterPlanner,
+    PlannerFactory,
+)
 from controllers.two_loop.params import (
     IpoptNmpcParams,
     TwoLoopParams,
@@ -53,8 +67,6 @@ from controllers.two_loop.params import (
     two_loop_params,
 )
 from controllers.two_loop.tracker import PreviewTracker, TrackerOutput
-
-_URGENT_WINDOW_S = 0.5  # the plan's deceleration over this much of its horizon [s]
 
 __all__ = ["TwoLoopController", "TwoLoopDiagnostics", "cgmres_planner", "ipopt_planner",
            "make_two_loop"]
@@ -127,6 +139,7 @@ class TwoLoopController:
         self._s_hint = 0.0
         self._t_prev: float | None = None
         self._t_first = 0.0
+        self._emergency: Emergency = NO_EMERGENCY
 
     @property
     def launch_count(self) -> int:
@@ -145,12 +158,23 @@ class TwoLoopController:
         self._s_hint = float(s)
         x0 = self._frenet_state(st)
         v0 = float(math.hypot(st[3], st[4]))
-        self.planner.reset(x0, min(v0, context.target_speed_mps) if v0 > 0 else 0.0)
+        # The OCP's target ramp starts at the car's speed, whatever the set-point: its
+        # closed-form start puts every stage's V at the ramp's speed, and the conversion
+        # (14) turns V - v into torque at once (started at the set-point 6 m/s below the
+        # car, the first command braked at 10 m/s²). The cruise set-point selects the
+        # ramp's deceleration limit (docs/two_loop.md, "Speed reference").
+        self.planner.reset(x0, v0)
+        if isinstance(self.planner, CruiseAware):
+            self.planner.set_cruise_speed(float(context.target_speed_mps))
         self._t_prev = None
         self.plan = None
         self.lateral.reset()
         self.mrm.reset()
-        self.jerk.reset()
+        vp = context.vehicle
+        # The car starts cruising: the limiter starts at the torque that holds its speed.
+        self.jerk.reset(vp.wheel_radius_m * resistance_n(v0, vp.plant_array()),
+                        (-vp.max_brake_torque_nm, vp.max_drive_torque_nm))
+        self._emergency = NO_EMERGENCY
         self.launch.reset(self.path, context.vehicle)
         self.tracker.reset(self.path, context.vehicle, p.outer.n_stages, st)
         meta, coef, knots = self.path.tables()
@@ -174,6 +198,13 @@ class TwoLoopController:
         e = (tha - g + math.pi) % (2.0 * math.pi) - math.pi
         return np.array([s, d, g + e])
 
+    def _curvature_1pm(self, s_m: float) -> float:
+        """The reference path's curvature at arc length ``s_m`` [1/m] (scalar kernel)."""
+        if self.path is None:
+            return 0.0
+        meta, coef, _ = self.path.tables()
+        return path_gamma(meta, coef, s_m)[1]
+
     def step(self, observation: Observation) -> Command:
         if self.path is None or self.planner is None:
             raise RuntimeError("TwoLoopController.step called before reset")
@@ -189,7 +220,8 @@ class TwoLoopController:
         y_ref = self.lateral.update(float(observation.lateral_reference_m),
                                     None if first else dt, float(x0[1]), speed,
                                     self.planner.horizon_growth(t_s - self._t_first),
-                                    evasive=bool(observation.evasive))
+                                    evasive=bool(observation.evasive),
+                                    curvature_1pm=self._curvature_1pm(float(x0[0])))
         c_y = self.lateral.weight(self.params.outer.c_y)
         target = float(observation.target_speed_mps)
         if self.mrm.due(t_s):  # back to the planner, restarted at the measured state
@@ -230,7 +262,8 @@ class TwoLoopController:
             out = TrackerOutput(steer, torque, out.preview_err_t_m, out.preview_err_n_m, 0.0, 0.0)
             if not self.mrm.active:
                 self.mrm.engage(t_s, speed, -self.params.outer.fallback_decel_mps2)
-        torque = self._limit_torque(torque, dt, speed, plan, lw)
+        self._emergency = self._emergency_now(x0, speed, plan, observation.obstacles, lw)
+        torque = self._limit_torque(torque, dt, lw)
         self.launch.observe_torque(torque)
         t_end = time.perf_counter()
         self._t_prev = observation.t_s
@@ -248,7 +281,10 @@ class TwoLoopController:
             lateral_ref_rate_mps=self.lateral.rate_mps, lateral_weight=c_y,
             launch=self.launch.active, launch_weight=lw,
             launch_ramp_speed_mps=self.launch.ramp.speed_mps, mrm=self.mrm.active,
-            mrm_hold_s=self.mrm.hold_s)
+            mrm_hold_s=self.mrm.hold_s, ocp_target_speed_mps=float(plan.target_speed_mps),
+            emergency=self._emergency.active,
+            emergency_decel_mps2=self._emergency.decel_mps2,
+            emergency_ds_m=self._emergency.ds_m, emergency_dy_m=self._emergency.dy_m)
         return Command(steer_rad=float(steer), torque_nm=float(torque), diagnostics=diag,
                        plan_xy_m=plan_xy, preview_xy_m=self.tracker.preview_xy_m.copy())
 
@@ -274,35 +310,29 @@ class TwoLoopController:
                                        observation.obstacles, int(observation.pass_side), dt)
         return steer, torque, lw
 
-    def _limit_torque(self, torque_nm: float, dt: float, speed_mps: float, plan: OuterPlan,
-                      launch_weight: float) -> float:
+    def _emergency_now(self, x0: np.ndarray, speed_mps: float, plan: OuterPlan,
+                       obstacles: Obstacles, launch_weight: float) -> Emergency:
+        """This step's emergency braking, for an obstacle only: the manoeuvre's own brace
+        while it drives, else :func:`planner_emergency` on the plan (none while the launch
+        law drives or blends out)."""
+        if self.launch.active or launch_weight > 0.0:
+            return NO_EMERGENCY
+        if self.mrm.active:
+            return self.mrm.emergency
+        return planner_emergency(self.params.fallback, x0, speed_mps, plan, obstacles,
+                                 self.params.policy)
+
+    def _limit_torque(self, torque_nm: float, dt: float, launch_weight: float) -> float:
         """The jerk limiter's stage (module docstring, step 6): bypassed while the launch
         law drives, bounded at the manoeuvre's own jerk while it drives, else at the
-        limiter's bounds raised for the plan's own urgent braking."""
+        limiter's bounds, raised only for this step's emergency (an obstacle's)."""
         m_r = self._vp[0] * self._vp[6]
         if self.launch.active or launch_weight > 0.0:
             return self.jerk.follow(torque_nm)
         if self.mrm.active:
             return self.jerk.limit(torque_nm, dt, m_r, self.mrm.ramp.jerk_mps3)
-        urgent = self._braking_jerk_mps3(speed_mps, plan) if \
-            self.jerk.brakes_harder_than_bound(torque_nm, dt, m_r) else 0.0
-        return self.jerk.limit(torque_nm, dt, m_r, urgent)
-
-    def _braking_jerk_mps3(self, speed_mps: float, plan: OuterPlan) -> float:
-        """The braking onset's jerk bound [m/s³] that the plan's own urgency calls for:
-        the deceleration from the measured speed to the plan's speed ``_URGENT_WINDOW_S``
-        ahead (the plan's V is an input: a plan far below the car's speed wants it slower
-        now), through the manoeuvre's :func:`onset_jerk_mps3` (the comfortable bound
-        unless that exceeds ``fallback.comfort_decel_mps2``). Not the obstacles' need:
-        while the ego evades a stopped car it could not stop for, braking for it is not
-        the plan."""
-        tau = np.asarray(plan.stage_times_s, dtype=np.float64)
-        v = np.asarray(plan.speeds_mps, dtype=np.float64)
-        if v.size == 0:
-            return 0.0
-        k = min(int(np.searchsorted(tau, _URGENT_WINDOW_S)), v.size - 1)
-        window = max(float(tau[k]), _URGENT_WINDOW_S)
-        return onset_jerk_mps3(self.params.fallback, (speed_mps - float(v[k])) / window)
+        at_least = self._emergency.jerk_mps3 if self._emergency.active else 0.0
+        return self.jerk.limit(torque_nm, dt, m_r, at_least)
 
     def _mrm_plan(self, x0: np.ndarray, y_ref: float, target: float, dt: float,
                   obstacles: Obstacles) -> OuterPlan:

@@ -26,7 +26,15 @@ class TwoLoopDiagnostics(StepDiagnostics):
         launch, easing to 0 after the hand-over); launch_ramp_speed_mps: the launch
         ramp's speed [m/s];
     mrm: the minimal-risk manoeuvre drives (the planner failed); mrm_hold_s: its current
-        hold [s] (doubled after repeated failures).
+        hold [s] (doubled after repeated failures);
+    ocp_target_speed_mps: the speed reference of this step's plan [m/s]: the OCP's Vt,
+        the set-point through the jerk-limited ramp (the manoeuvre's or the launch law's
+        ramp while they drive);
+    emergency: braking beyond comfort for an obstacle (the jerk limiter's bound raised
+        for it, or the manoeuvre braced beyond comfort for it); emergency_decel_mps2: the
+        braking that obstacle needs [m/s²]; emergency_ds_m, emergency_dy_m: its ellipse
+        centre from the ego's CG along and across the path [m] (all NaN without an
+        emergency).
     """
 
     steer_outer_rad: float = math.nan
@@ -45,3 +53,8 @@ class TwoLoopDiagnostics(StepDiagnostics):
     launch_ramp_speed_mps: float = math.nan
     mrm: bool = False
     mrm_hold_s: float = math.nan
+    ocp_target_speed_mps: float = math.nan
+    emergency: bool = False
+    emergency_decel_mps2: float = math.nan
+    emergency_ds_m: float = math.nan
+    emergency_dy_m: float = math.nan

@@ -11,7 +11,7 @@ and follows this manoeuvre instead, committed for at least ``hold_s``:
   an obstacle ellipse ahead covering the ego's lateral position (the followed lead's
   wall, a stopped car), at distance d from the ego's CG to the ellipse and closing at
   dv, the braking needed is b = dv² / (2 d) (d at least the bumper gap less
-  ``standstill_m``: :func:`needed_decel_mps2`); while 1.2 b exceeds ``decel_mps2`` the ramp
+  ``standstill_m``: :func:`most_urgent_obstacle`); while 1.2 b exceeds ``decel_mps2`` the ramp
   brakes at up to 1.2 b, capped at ``emergency_decel_mps2``; its jerk bound
   (:func:`onset_jerk_mps3`) is ``jerk_mps3`` while 1.2 b is within
   ``comfort_decel_mps2`` and ``emergency_jerk_mps3`` beyond (a collision is worse than
@@ -40,6 +40,27 @@ from controllers.path.frenet import FrenetPath
 from controllers.protocol import Obstacles
 from controllers.two_loop.outer.ocp import TargetSpeedRamp
 from controllers.two_loop.outer.protocol import OuterPlan
+
+NEED_MARGIN = 1.2  # braking is planned for this multiple of the obstacle's need b [-]
+URGENT_WINDOW_S = 0.5  # the plan's deceleration is read over this much of its horizon [s]
+
+
+@dataclass(frozen=True)
+class Emergency:
+    """Braking beyond comfort for an obstacle (the only reason for it), as the trace
+    shows it: ``active``; ``decel_mps2`` the braking b the obstacle needs
+    (:func:`most_urgent_obstacle`) [m/s²]; ``ds_m``, ``dy_m`` its ellipse centre from the
+    ego's CG along and across the path [m]; ``jerk_mps3`` the braking onset's jerk bound
+    it allows [m/s³] (NaN when not active)."""
+
+    active: bool = False
+    decel_mps2: float = math.nan
+    ds_m: float = math.nan
+    dy_m: float = math.nan
+    jerk_mps3: float = math.nan
+
+
+NO_EMERGENCY = Emergency()
 
 
 @dataclass(frozen=True)
@@ -85,9 +106,11 @@ class MinimalRiskManeuver:
         self._released = -math.inf
         self._hold = params.hold_s
         self._cap = 0.0
+        self.emergency = NO_EMERGENCY
 
     def reset(self) -> None:
         self.active = False
+        self.emergency = NO_EMERGENCY
         self.count = 0
         self._since = -math.inf
         self._released = -math.inf
@@ -113,16 +136,23 @@ class MinimalRiskManeuver:
     def release(self, t_s: float) -> None:
         self.active = False
         self._released = t_s
+        self.emergency = NO_EMERGENCY
 
     def _brace(self, x0: np.ndarray, obstacles: Obstacles | None) -> None:
         """Ramp limits for this step: the usual ones, or harder if an obstacle ahead needs
-        it (module docstring)."""
+        it (module docstring); :attr:`emergency` says which obstacle, when that need is
+        beyond ``comfort_decel_mps2``."""
         p = self.params
-        need = needed_decel_mps2(x0, self.ramp.speed_mps, obstacles, self.policy,
-                                 p.standstill_m)
-        if 1.2 * need > p.decel_mps2:
-            self.ramp.decel_mps2 = min(1.2 * need, p.emergency_decel_mps2)
-            self.ramp.jerk_mps3 = onset_jerk_mps3(p, 1.2 * need)
+        need, j = most_urgent_obstacle(x0, self.ramp.speed_mps, obstacles, self.policy,
+                                       p.standstill_m)
+        self.emergency = NO_EMERGENCY
+        if NEED_MARGIN * need > p.decel_mps2 and obstacles is not None and j >= 0:
+            self.ramp.decel_mps2 = min(NEED_MARGIN * need, p.emergency_decel_mps2)
+            self.ramp.jerk_mps3 = onset_jerk_mps3(p, NEED_MARGIN * need)
+            if NEED_MARGIN * need > p.comfort_decel_mps2:  # beyond comfort: an emergency
+                self.emergency = Emergency(True, need, float(obstacles.s_m[j] - x0[0]),
+                                           float(obstacles.y_m[j] - x0[1]),
+                                           self.ramp.jerk_mps3)
         else:
             self.ramp.decel_mps2 = p.decel_mps2
             self.ramp.jerk_mps3 = p.jerk_mps3
@@ -150,7 +180,7 @@ class MinimalRiskManeuver:
         states = np.column_stack([s, y, path.gamma(s)])
         return OuterPlan(stage_times_s=tau, states=states, speeds_mps=v[:-1].copy(),
                          headings_rad=states[:-1, 2].copy(), residual=math.nan,
-                         fallback=True, guard_fired=0, solve_s=0.0)
+                         fallback=True, guard_fired=0, solve_s=0.0, target_speed_mps=v0)
 
 
 def onset_jerk_mps3(p: FallbackParams, decel_mps2: float) -> float:
@@ -162,12 +192,57 @@ def onset_jerk_mps3(p: FallbackParams, decel_mps2: float) -> float:
     return p.jerk_mps3 if decel_mps2 <= p.comfort_decel_mps2 else p.emergency_jerk_mps3
 
 
+def plan_decel_mps2(speed_mps: float, plan: OuterPlan,
+                    window_s: float = URGENT_WINDOW_S) -> float:
+    """The deceleration [m/s²] the plan asks of the car: (v - V_k) / max(tau_k, window_s),
+    v the measured speed, V_k the plan's speed at its first node tau_k >= ``window_s``
+    (the last if the horizon is shorter). The plan's V is an input of its point-mass
+    model: a plan far below the car's speed wants it slower now. 0 for an empty plan."""
+    tau = np.asarray(plan.stage_times_s, dtype=np.float64)
+    v = np.asarray(plan.speeds_mps, dtype=np.float64)
+    if v.size == 0:
+        return 0.0
+    k = min(int(np.searchsorted(tau, window_s)), v.size - 1)
+    return (speed_mps - float(v[k])) / max(float(tau[k]), window_s)
+
+
+def planner_emergency(p: FallbackParams, x0: np.ndarray, speed_mps: float, plan: OuterPlan,
+                      obstacles: Obstacles | None,
+                      policy: ObstaclePolicy | None = None) -> Emergency:
+    """Whether the planner's braking this step is an emergency: both the plan's own
+    deceleration (:func:`plan_decel_mps2`) and ``NEED_MARGIN`` times an obstacle's need b
+    (:func:`most_urgent_obstacle`, from the measured Frenet x0 and speed) exceed
+    ``comfort_decel_mps2``. Then its braking onset may be as fast as
+    :func:`onset_jerk_mps3` of the lesser of the two (``emergency_jerk_mps3``).
+
+    The plan alone is not enough: a set-point below the car's speed (a lower set speed,
+    a restart) is no emergency, however far below. Nor is the obstacle alone: a stopped
+    car the ego evades "needs" an emergency stop all the while the plan goes round it."""
+    if obstacles is None or obstacles.count == 0:
+        return NO_EMERGENCY
+    want = plan_decel_mps2(speed_mps, plan)
+    if not want > p.comfort_decel_mps2:
+        return NO_EMERGENCY
+    need, j = most_urgent_obstacle(x0, speed_mps, obstacles, policy, p.standstill_m)
+    if j < 0 or not NEED_MARGIN * need > p.comfort_decel_mps2:
+        return NO_EMERGENCY
+    return Emergency(True, need, float(obstacles.s_m[j] - x0[0]), float(obstacles.y_m[j] - x0[1]),
+                     onset_jerk_mps3(p, min(want, NEED_MARGIN * need)))
+
+
 def needed_decel_mps2(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | None,
                       policy: ObstaclePolicy | None = None, standstill_m: float = 1.0) -> float:
-    """Braking [m/s²] that keeps the ego's CG (Frenet x0 = (s, y, ...), speed v) out of
-    the nearest ellipse ahead covering its lateral offset: b = (v - v_j)² / (2 d_j), d_j
-    = s_j - A_j - s the distance to the ellipse's rear point along s, v_j the ellipse's
-    speed along s (0 if nothing is ahead or nothing closes).
+    """The braking [m/s²] :func:`most_urgent_obstacle` finds (0 if nothing is ahead)."""
+    return most_urgent_obstacle(x0, speed_mps, obstacles, policy, standstill_m)[0]
+
+
+def most_urgent_obstacle(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | None,
+                         policy: ObstaclePolicy | None = None, standstill_m: float = 1.0
+                         ) -> tuple[float, int]:
+    """(b [m/s²], j): the braking b that keeps the ego's CG (Frenet x0 = (s, y, ...),
+    speed v) out of the nearest ellipse ahead covering its lateral offset:
+    b = (v - v_j)² / (2 d_j), d_j = s_j - A_j - s the distance to the ellipse's rear point
+    along s, v_j the ellipse's speed along s (0 if nothing is ahead or nothing closes).
 
     Without ``policy``, inf once the CG is at or past that point (d_j <= 0) and closing.
     With the ``policy`` the ellipses were built with (a_j the box-sum half length,
@@ -183,14 +258,17 @@ def needed_decel_mps2(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | N
     nearly the ego's speed needs little braking, not an emergency stop (with d_j near
     zero there it needed 8 m/s²); far out the ellipse's distance keeps its early,
     harder braking for a stopped car (the bumper gap alone braked later: TTC 1.5 s ->
-    0.8 s behind a car stopping 15 m ahead at 11.5 m/s)."""
+    0.8 s behind a car stopping 15 m ahead at 11.5 m/s).
+
+    j is the index into ``obstacles`` of the ellipse that needs b (the first of the
+    largest; -1 with b = 0 when nothing ahead covers the ego or nothing closes)."""
     if obstacles is None or obstacles.count == 0:
-        return 0.0
+        return 0.0, -1
     s, y = float(x0[0]), float(x0[1])
     ds = obstacles.s_m - s
     ahead = (ds > 0.0) & (np.abs(obstacles.y_m - y) < obstacles.semi_b_m)
     if not np.any(ahead):
-        return 0.0
+        return 0.0, -1
     d = ds[ahead] - obstacles.semi_a_m[ahead]
     if policy is not None:
         half = box_half_length_m(obstacles.semi_a_m[ahead], obstacles.semi_b_m[ahead], policy)
@@ -201,4 +279,7 @@ def needed_decel_mps2(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | N
     with np.errstate(divide="ignore", invalid="ignore"):
         b = np.where(d > 0.0, closing**2 / (2.0 * np.maximum(d, 1e-9)),
                      np.where(closing > 0.0, np.inf, 0.0))
-    return float(np.max(b))
+    k = int(np.argmax(b))
+    if not b[k] > 0.0:
+        return 0.0, -1
+    return float(b[k]), int(np.flatnonzero(ahead)[k])

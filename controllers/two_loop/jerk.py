@@ -15,12 +15,21 @@ never exceeds a_max (``max_accel_mps2``: pulling out from behind a stopped car a
 speed, the plan's speed-up and the tangential correction together asked for 2.9 m/s²,
 beyond comfort; drag and rolling resistance only lower what the car then does).
 
-An urgent braking need raises the bounds the way it raises the minimal-risk
-manoeuvre's (:func:`controllers.two_loop.fallback.onset_jerk_mps3`): when the plan's
-speed half a second ahead is below the car's by more than comfortable braking gives,
-the onset is not slowed below what that deceleration calls for (the controller checks
-this only when the bound would hold a braking request back). While the minimal-risk
-manoeuvre drives, the bounds are raised to its own current jerk bound
+The torque is also kept within the actuators' range [-T_brake, T_drive] (``reset``):
+the plant saturates there anyway, and a request beyond it remembered as handed out winds
+the limiter up (a -9000 N m request against the 4500 N m brake took 3.3 s at the jerk
+bound to come back to -4500 N m: the car braked at 10 m/s² to a standstill). A run
+starts from the torque that holds the initial speed (``reset(initial_torque_nm)``), so
+its first command is rate-limited too (before, it passed unchanged: a plan 6 m/s below
+the car's speed braked at 10 m/s² in the first period).
+
+Emergency braking raises the bounds the way it raises the minimal-risk manoeuvre's
+(:func:`controllers.two_loop.fallback.onset_jerk_mps3`), and only for an obstacle
+(:func:`controllers.two_loop.fallback.planner_emergency`): when the plan's speed half a
+second ahead is below the car's by more than comfortable braking gives *and* an
+obstacle ahead needs braking beyond comfort, the onset is not slowed below what that
+deceleration calls for. A set-point below the car's speed never raises it. While the
+minimal-risk manoeuvre drives, the bounds are raised to its own current jerk bound
 (``at_least_mps3``: its emergency braking must not be slowed down, its comfortable
 braking and release keep the limiter's bound); during the standstill launch the
 limiter is bypassed (the state follows the command).
@@ -55,11 +64,27 @@ class JerkLimiter:
     def __init__(self, params: JerkLimitParams) -> None:
         self.params = params
         self._last: float | None = None
+        self._lo = -math.inf
+        self._hi = math.inf
         self.limited = False
 
-    def reset(self) -> None:
-        self._last = None
+    def reset(self, initial_torque_nm: float | None = None,
+              torque_range_nm: tuple[float, float] = (-math.inf, math.inf)) -> None:
+        """Start of a run: the first command is limited from ``initial_torque_nm`` [N m]
+        (None: it passes unchanged); every command handed out (and remembered) is kept
+        within ``torque_range_nm`` = (lowest, highest) [N m], the actuators' range."""
+        lo, hi = (float(v) for v in torque_range_nm)
+        if not lo <= hi:
+            raise ValueError(f"torque_range_nm must be (low, high) with low <= high, "
+                             f"got {torque_range_nm!r}")
+        self._lo, self._hi = lo, hi
+        self._last = None if initial_torque_nm is None else self._clip(float(initial_torque_nm))
         self.limited = False
+
+    def _clip(self, torque_nm: float) -> float:
+        """``torque_nm`` within the actuators' range (a non-finite value unchanged)."""
+        return min(max(torque_nm, self._lo), self._hi) if math.isfinite(torque_nm) \
+            else torque_nm
 
     @property
     def last_torque_nm(self) -> float:
@@ -69,8 +94,9 @@ class JerkLimiter:
     def limit(self, torque_nm: float, dt_s: float, torque_per_accel_nm: float,
               at_least_mps3: float = 0.0) -> float:
         """The requested ``torque_nm`` rate-limited (module docstring), both bounds raised
-        to ``at_least_mps3``; the first command of a run and a non-finite request pass
-        unchanged. ``limited`` says whether the bound acted."""
+        to ``at_least_mps3``, within the actuators' range; a non-finite request, and the
+        first command of a run reset without an initial torque, pass unchanged (but for
+        the range). ``limited`` says whether a bound acted."""
         last = self._last
         self.limited = False
         if (not self.params.enabled or last is None or not math.isfinite(torque_nm)
@@ -79,22 +105,14 @@ class JerkLimiter:
         p = self.params
         up = max(p.jerk_up_mps3, at_least_mps3) * torque_per_accel_nm * dt_s
         down = max(p.jerk_down_mps3, at_least_mps3) * torque_per_accel_nm * dt_s
-        out = min(max(torque_nm, last - down), last + up,
-                  p.max_accel_mps2 * torque_per_accel_nm)
+        out = self._clip(min(max(torque_nm, last - down), last + up,
+                             p.max_accel_mps2 * torque_per_accel_nm))
         self.limited = out != torque_nm
         self._last = out
         return out
 
-    def brakes_harder_than_bound(self, torque_nm: float, dt_s: float,
-                                 torque_per_accel_nm: float) -> bool:
-        """Whether ``limit`` would hold back this request's braking onset at the
-        configured bound (the caller may then raise it for an urgent need)."""
-        last = self._last
-        if not self.params.enabled or last is None or not math.isfinite(torque_nm):
-            return False
-        return torque_nm < last - self.params.jerk_down_mps3 * torque_per_accel_nm * dt_s
-
     def follow(self, torque_nm: float) -> float:
-        """Bypass: remember ``torque_nm`` as handed out (bumpless when limiting resumes)."""
-        self._last = float(torque_nm)
-        return float(torque_nm)
+        """Bypass: hand out ``torque_nm`` within the actuators' range and remember it
+        (bumpless when limiting resumes)."""
+        self._last = self._clip(float(torque_nm))
+        return self._last

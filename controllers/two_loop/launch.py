@@ -277,4 +277,4 @@ class LaunchSupervisor:
         states = np.column_stack([s, np.full(n + 1, float(x0[1])), self._path.gamma(s)])
         return OuterPlan(stage_times_s=tau, states=states, speeds_mps=v[:-1].copy(),
                          headings_rad=states[:-1, 2].copy(), residual=0.0, fallback=False,
-                         guard_fired=0, solve_s=0.0)
+                         guard_fired=0, solve_s=0.0, target_speed_mps=self.ramp.speed_mps)

@@ -263,7 +263,7 @@ class CgmresOuter:
         self._hz = np.array([0.0, params.horizon_s, params.horizon_growth_rate])
         self._vt = 0.0
         self._ramp = TargetSpeedRamp(params.target_accel_mps2, params.target_decel_mps2,
-                                     params.target_jerk_mps3)
+                                     params.target_jerk_mps3, params.set_speed_decel_mps2)
         self._yr = 0.0  # lateral reference at the previous update [m]
         self._cy = params.c_y  # Cy at the previous update
         self._fallback_until = -math.inf
@@ -303,11 +303,15 @@ class CgmresOuter:
         return 1.0 - math.exp(-self.params.horizon_growth_rate * max(elapsed_s, 0.0))
 
     def reset(self, x0: np.ndarray, target_speed_mps: float) -> None:
-        """Forget everything; the next update initialises at its state (E ~ 0)."""
+        """Forget everything; the next update initialises at its state (E ~ 0) with the
+        OCP's target speed at ``target_speed_mps`` (the measured speed: the closed-form
+        start puts every stage's V there). The cruise set-point is forgotten too
+        (:meth:`set_cruise_speed`)."""
         self._initialised = False
         self._x_prev = np.asarray(x0, dtype=np.float64).copy()
         self._vt = float(target_speed_mps)
         self._ramp.reset(self._vt)
+        self._ramp.cruise_speed_mps = math.inf
         self._yr = 0.0
         self._cy = self.params.c_y
         self._obs = obstacle_table(self.n_slots)
@@ -315,6 +319,13 @@ class CgmresOuter:
         self.fallback_count = 0
         self.guard_total = 0
         self.subupdate_times_s.clear()
+
+    def set_cruise_speed(self, cruise_speed_mps: float) -> None:
+        """The run's cruise set-point [m/s]: the target ramp decelerates toward a
+        set-point at or above it at ``set_speed_decel_mps2``, toward a lower one (the
+        behaviour lowered it to follow) at ``target_decel_mps2`` (:class:`TargetSpeedRamp`).
+        Until it is given (after ``reset``), ``target_decel_mps2`` everywhere."""
+        self._ramp.cruise_speed_mps = float(cruise_speed_mps)
 
     def restart(self, x0: np.ndarray, target_speed_mps: float,
                 target_accel_mps2: float = 0.0) -> None:
@@ -584,7 +595,8 @@ class CgmresOuter:
             headings = u[:, 0].copy()
         return OuterPlan(stage_times_s=self.w * self.horizon_now(t_s), states=self._xs.copy(),
                          speeds_mps=speeds, headings_rad=headings, residual=float('nan'),
-                         fallback=False, guard_fired=0, solve_s=0.0)
+                         fallback=False, guard_fired=0, solve_s=0.0,
+                         target_speed_mps=self._vt)
 
     def _braking_plan(self, t_s: float, x0: np.ndarray) -> OuterPlan:
         """Brake at fallback_decel along the lane, keeping the current lateral offset."""
@@ -599,7 +611,8 @@ class CgmresOuter:
         states = np.column_stack([s, np.full_like(s, x0[1]), self.path.gamma(s)])
         return OuterPlan(stage_times_s=tau, states=states, speeds_mps=v[:-1].copy(),
                          headings_rad=states[:-1, 2].copy(), residual=float('nan'),
-                         fallback=True, guard_fired=0, solve_s=0.0)
+                         fallback=True, guard_fired=0, solve_s=0.0,
+                         target_speed_mps=self._vt)
 
     # Accessors for tests and diagnostics.
     @property

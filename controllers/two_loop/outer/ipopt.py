@@ -514,7 +514,7 @@ class IpoptOuter:
         self._vt = 0.0
         self._vt_set = False
         self._ramp = TargetSpeedRamp(params.target_accel_mps2, params.target_decel_mps2,
-                                     params.target_jerk_mps3)
+                                     params.target_jerk_mps3, params.set_speed_decel_mps2)
         self._t_prev: float | None = None
         self._last_success_t: float | None = None
 
@@ -544,16 +544,26 @@ class IpoptOuter:
         return nlp
 
     def reset(self, x0: np.ndarray, target_speed_mps: float) -> None:
-        """Forget the previous solution; the next update is a cold start."""
+        """Forget the previous solution; the next update is a cold start, its guess at
+        the OCP target speed ``target_speed_mps`` (the measured speed). The cruise
+        set-point is forgotten too (:meth:`set_cruise_speed`)."""
         self._prev = None
         self._vt = float(target_speed_mps)
         self._vt_set = True
         self._ramp.reset(self._vt)
+        self._ramp.cruise_speed_mps = math.inf
         self._t_prev = None
         self._last_success_t = None
         self.fallback_count = 0
         self.update_count = 0
         self.history.clear()
+
+    def set_cruise_speed(self, cruise_speed_mps: float) -> None:
+        """The run's cruise set-point [m/s]: the target ramp decelerates toward a
+        set-point at or above it at ``set_speed_decel_mps2``, toward a lower one (the
+        behaviour lowered it to follow) at ``target_decel_mps2`` (:class:`TargetSpeedRamp`).
+        Until it is given (after ``reset``), ``target_decel_mps2`` everywhere."""
+        self._ramp.cruise_speed_mps = float(cruise_speed_mps)
 
     def restart(self, x0: np.ndarray, target_speed_mps: float,
                 target_accel_mps2: float = 0.0) -> None:
@@ -647,6 +657,7 @@ class IpoptOuter:
             fallback=fallback,
             guard_fired=0,
             solve_s=time.perf_counter() - t_start,
+            target_speed_mps=vt,
         )
         self.update_count += 1
         self.last_iterations = iters

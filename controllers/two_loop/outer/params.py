@@ -34,6 +34,13 @@ class OcpParams:
     J1 = Cy (y - yr)² + Ctheta e² + CV (V - Vt)², J2 = Cy (y - yr)² + Cyd f2² +
     Csd (f1 - Vt)², J3 = J2 + Cthd omega², each minus Cz sum_j ln(Z_j + zeta).
     Terminal: CyT (y_N - yr)² + CeT e_N² (CeT for J3 only).
+
+    Target speed Vt: the set-point through the jerk-limited ramp
+    (:class:`controllers.two_loop.outer.ocp.TargetSpeedRamp`), from the measured speed at
+    a (re)start: acceleration up to ``target_accel_mps2``, deceleration up to
+    ``set_speed_decel_mps2`` toward the run's cruise set-point and ``target_decel_mps2``
+    toward a set-point the behaviour lowered below it (following), jerk up to
+    ``target_jerk_mps3``.
     """
 
     cost: Cost = param("J3", "-", "running cost: J1, J2 or J3 (docs/method.md §3)")
@@ -51,7 +58,10 @@ class OcpParams:
     c_y_terminal: float = param(0.0, "1/m²", "CyT: terminal lateral offset")
     c_e_terminal: float = param(2.0, "1/rad²", "CeT: terminal heading error (J3)")
     target_accel_mps2: float = param(1.5, "m/s²", "target-speed ramp: acceleration limit")
-    target_decel_mps2: float = param(3.0, "m/s²", "target-speed ramp: deceleration limit")
+    target_decel_mps2: float = param(3.0, "m/s²", "target-speed ramp: deceleration limit "
+                                     "toward a set-point lowered to follow")
+    set_speed_decel_mps2: float = param(1.5, "m/s²", "target-speed ramp: deceleration limit "
+                                        "toward the cruise set-point")
     target_jerk_mps3: float = param(2.0, "m/s³", "target-speed ramp: jerk limit")
     fallback_decel_mps2: float = param(3.0, "m/s²",
                                        "deceleration of the brake-along-the-lane plan")
@@ -59,7 +69,7 @@ class OcpParams:
     def __post_init__(self) -> None:
         check_leaves(self)
         for name in ("horizon_s", "c_z", "zeta", "target_accel_mps2", "target_decel_mps2",
-                     "target_jerk_mps3", "fallback_decel_mps2"):
+                     "set_speed_decel_mps2", "target_jerk_mps3", "fallback_decel_mps2"):
             check_range(self, name, gt=0.0)
         for name in ("c_y", "c_ydot", "c_sdot", "c_thetadot", "c_theta", "c_v",
                      "c_y_terminal", "c_e_terminal"):

@@ -14,9 +14,10 @@ three state columns, theta taken from the input.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -35,6 +36,8 @@ class OuterPlan:
     fallback: True when the solver was re-initialised / a safe plan was used.
     guard_fired: barrier-guard interventions during this update.
     solve_s: wall time of the update [s].
+    target_speed_mps: the OCP's target speed Vt of this update, the set-point through
+        the jerk-limited ramp [m/s] (NaN if the plan has none).
     """
 
     stage_times_s: np.ndarray
@@ -45,6 +48,7 @@ class OuterPlan:
     fallback: bool
     guard_fired: int
     solve_s: float
+    target_speed_mps: float = math.nan
 
 
 class OuterPlanner(Protocol):
@@ -63,7 +67,8 @@ class OuterPlanner(Protocol):
 
     def reset(self, x0: np.ndarray, target_speed_mps: float) -> None:
         """Forget the run; the next update starts afresh at its state, its OCP target
-        speed ramping from ``target_speed_mps``."""
+        speed ramping from ``target_speed_mps`` (the measured speed) toward each update's
+        set-point."""
         ...
 
     def restart(self, x0: np.ndarray, target_speed_mps: float,
@@ -83,6 +88,18 @@ class OuterPlanner(Protocol):
         Callers pass smooth signals (the lateral-reference shaper smooths the
         behaviour's steps): a jump in yr or Cy is a jump in the optimality residual."""
         ...
+
+
+@runtime_checkable
+class CruiseAware(Protocol):
+    """A planner that takes the run's cruise set-point (after ``reset``): set-points at
+    or above it ramp down at ``set_speed_decel_mps2``, lower ones (the behaviour lowered
+    them to follow) at ``target_decel_mps2``
+    (:class:`controllers.two_loop.outer.ocp.TargetSpeedRamp`). Both built-in planners
+    are; a planner that is not ramps as it likes (the controller only tells those that
+    are)."""
+
+    def set_cruise_speed(self, cruise_speed_mps: float) -> None: ...
 
 
 # Builds a run's planner once the path is known: (path, number of obstacle slots K).
