@@ -16,6 +16,7 @@ from suite.road.network import (
     dedupe_polyline,
     is_shoulder_permissions,
 )
+from suite.road.record import route_lane_records
 
 # A 3-lane road with a hard shoulder on e0, a curve on e1, a lane drop to 2 lanes on e2
 # (the right lane of e1 ends), 3 lanes again on e3, and a short side branch from b.
@@ -219,6 +220,32 @@ def test_lane_centreline_goes_through_junction_lanes(mixed: RoadNetwork) -> None
     i = int(np.argmin(np.hypot(*(poly - e0_end).T)))
     # ... and the polyline bridges it with short steps (the via lane), not one long jump
     assert np.hypot(*(poly[i + 1] - poly[i])) < 2.5
+
+
+def test_route_lane_records_keep_the_route_and_its_junction_lanes(mixed: RoadNetwork) -> None:
+    """road.json's lanes: every lane of every route edge, each internal lane of the
+    connections between consecutive route edges once (permissions of the lane it leaves,
+    starting at that lane's end), nothing of the side branch."""
+    lanes = route_lane_records(mixed, ROUTE)
+    ids = [ln.id for ln in lanes]
+    assert len(ids) == len(set(ids))
+    regular = [ln for ln in lanes if not ln.internal]
+    assert [ln.id for ln in regular] == [li.id for li in mixed.lane_info(ROUTE)]
+    assert not any(ln.edge_id == "ramp" for ln in lanes)
+    internal = [ln for ln in lanes if ln.internal]
+    vias = {v for k, edge in enumerate(ROUTE[:-1]) for link in mixed.lane_links(edge)
+            if link.to_edge_id == ROUTE[k + 1] for v in link.via_ids}
+    assert internal and {ln.id for ln in internal} == vias
+    checked = 0
+    for ln in internal:
+        assert ln.id.startswith(":")
+        source = next((r for r in regular
+                       if np.hypot(*(r.shape_xy_m[-1] - ln.shape_xy_m[0])) < 1e-6), None)
+        if source is not None:  # the first internal lane of its connection
+            assert (ln.allowed, ln.is_shoulder, ln.allows_passenger) == (
+                source.allowed, source.is_shoulder, source.allows_passenger)
+            checked += 1
+    assert checked > 0
 
 
 @pytest.mark.sumo

@@ -2,8 +2,9 @@
 
 One row per run that did not pass (errors and timeouts first, then failures, by
 scenario): status, scenario (linked to its page's failures), variant, the first
-failed criterion with its value against the limit (units) and when, how many more
-failed, and the run's ``.rrd``. An error or timeout row carries the exception's
+failed criterion with its value against the limit (units) and when (an off-road
+failure also names the boundary crossed and by how much), how many more failed, and
+the run's ``.rrd``. An error or timeout row carries the exception's
 last line instead of a criterion.
 """
 
@@ -13,7 +14,7 @@ from collections.abc import Sequence
 
 from reports.html.charts import esc, fmt
 from reports.html.links import Links
-from reports.record import Failure
+from reports.record import Failure, MetricValue
 from reports.tables import RunEntry
 
 STATUS_ORDER = {"error": 0, "timeout": 1, "fail": 2, "pass": 3}
@@ -47,6 +48,17 @@ def value_vs_limit(f: Failure) -> str:
     return f"{fmt(f.value)}{u} {op} {fmt(f.limit)}{u}"
 
 
+def failure_detail(f: Failure, metrics: Sequence[MetricValue]) -> str:
+    """What the failed metric says about where it failed, '' if nothing: for an off-road
+    failure the boundary crossed farthest and by how much (``right edge of lane a_0 by
+    0.42 m at t = 12.30 s``; :class:`reports.record.verdict.BoundaryCrossing`)."""
+    metric = next((m for m in metrics if m.name == f.metric), None)
+    crossing = metric.crossing if metric is not None else None
+    if crossing is None:
+        return ""
+    return f"{crossing.text} at t = {crossing.t_s:.2f} s"
+
+
 def when(f: Failure) -> str:
     if f.t_s is None:
         return "whole run"
@@ -73,8 +85,10 @@ def failures_section(runs: Sequence[RunEntry], links: Links) -> str:
         if r.failures and r.status == "fail" or (r.failures and not r.error):
             f = r.failures[0]
             more = len(r.failures) - 1
-            body = (f"<td>{esc(f.criterion)}</td><td class=\"num\">{value_vs_limit(f)}</td>"
-                    f"<td>{esc(when(f))}</td><td>{f'+{more}' if more else ''}</td>")
+            detail = failure_detail(f, r.metrics)
+            shown = f'<br><span class="meta">{esc(detail)}</span>' if detail else ""
+            body = (f"<td>{esc(f.criterion)}</td><td class=\"num\">{value_vs_limit(f)}"
+                    f"{shown}</td><td>{esc(when(f))}</td><td>{f'+{more}' if more else ''}</td>")
         else:
             body = (f'<td colspan="3" class="err1">{esc(last_line(r.error) or r.status)}</td>'
                     f"<td>{f'+{len(r.failures)}' if r.failures else ''}</td>")

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from reports.html.birdseye import birdseye_svg
 from reports.html.charts import esc, fmt
-from reports.html.failures import badge, log_link, value_vs_limit, when
+from reports.html.failures import badge, failure_detail, log_link, value_vs_limit, when
 from reports.html.links import STYLE, Links
 from reports.html.marks import Mark, failure_marks
 from reports.html.runs import collision_disagreements, metrics_table, time_series
@@ -36,8 +36,10 @@ def _failures(run: RunEntry) -> str:
     items = []
     for f in run.failures:
         step = f", step {f.step}" if f.step is not None else ""
+        detail = failure_detail(f, run.metrics)
+        where = f"<br><span class=\"meta\">{esc(detail)}</span>" if detail else ""
         items.append(f"<li><b>{esc(f.criterion)}</b>: {esc(f.metric)} = {value_vs_limit(f)} "
-                     f"({esc(when(f))}{step})</li>")
+                     f"({esc(when(f))}{step}){where}</li>")
     err = f'<pre class="err">{esc(run.error)}</pre>' if run.error else ""
     return (f'<section id="failures"><h2>Why it did not pass</h2><ul>{"".join(items)}</ul>'
             f"{err}</section>")

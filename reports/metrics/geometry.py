@@ -1,4 +1,5 @@
-"""Oriented-box geometry for collision, gap and TTC checks: compiled kernels, numpy references.
+"""Oriented-box geometry for collision, gap and TTC checks, and the point-to-polygon excess
+of the drivable area: compiled kernels, numpy references.
 
 A box is (cx, cy, heading_rad, length_m, width_m): centre [m], heading CCW from +X [rad],
 length and width [m]. Its corners (4, 2) are, in this order, front-left, rear-left,
@@ -17,6 +18,9 @@ Three questions, each over many boxes in one compiled call (numba, ``cache=True`
   first touch at tau = max over axes of t_lo if that is <= the min of t_hi and the
   interval ends at t >= 0 (0 if they overlap now, +inf if they never touch within the
   horizon).
+
+A fourth, for the drivable area (:func:`polygons_excess`): the signed excess of points
+over a union of convex polygons (distance outside, minus the depth inside).
 
 The kernels follow numpy's NaN propagation exactly, so that they agree with the numpy
 references (:func:`boxes_overlap_reference`, :func:`box_distance_reference`,
@@ -247,6 +251,71 @@ def _ttc_kernel(a: np.ndarray, va: np.ndarray, b: np.ndarray, vb: np.ndarray, ho
         out[i] = ttc if ttc <= horizon else math.inf
 
 
+@numba.njit(cache=True, error_model="numpy")
+def _polygons_excess_kernel(px: np.ndarray, py: np.ndarray, polys: np.ndarray,
+                            bbox: np.ndarray, excess: np.ndarray, piece: np.ndarray,
+                            edge: np.ndarray) -> None:
+    """Per point: signed excess over a union of convex CCW polygons (K, V, 2) with
+    bounding boxes (K, 4) = (xmin, ymin, xmax, ymax), its polygon and edge (module doc
+    of :func:`polygons_excess`)."""
+    n_poly = polys.shape[0]
+    n_vert = polys.shape[1]
+    for i in range(px.shape[0]):
+        x = px[i]
+        y = py[i]
+        excess[i] = _NAN
+        piece[i] = -1
+        edge[i] = -1
+        if x != x or y != y:
+            continue
+        best_out = math.inf
+        best_in = 0.0  # the largest depth found so far (> 0 once inside a polygon)
+        inside = False
+        for k in range(n_poly):
+            gx = max(bbox[k, 0] - x, 0.0, x - bbox[k, 2])
+            gy = max(bbox[k, 1] - y, 0.0, y - bbox[k, 3])
+            if inside:
+                if gx > 0.0 or gy > 0.0:
+                    continue  # outside its box: cannot contain the point
+            elif gx * gx + gy * gy >= best_out * best_out:
+                continue  # its box is farther than the nearest polygon so far
+            depth = math.inf
+            depth_edge = -1
+            dist = math.inf
+            dist_edge = -1
+            for j in range(n_vert):
+                ax = polys[k, j, 0]
+                ay = polys[k, j, 1]
+                bx = polys[k, (j + 1) % n_vert, 0]
+                by = polys[k, (j + 1) % n_vert, 1]
+                ex = bx - ax
+                ey = by - ay
+                length = math.sqrt(ex * ex + ey * ey)
+                if length < 1e-12:
+                    continue  # a repeated vertex (a triangle stored as a quad)
+                signed = (ex * (y - ay) - ey * (x - ax)) / length  # > 0 on the inner side
+                if signed < depth:
+                    depth = signed
+                    depth_edge = j
+                d = _point_segment(x, y, ax, ay, bx, by)
+                if d < dist:
+                    dist = d
+                    dist_edge = j
+            if depth_edge < 0:
+                continue  # a degenerate polygon (every edge of zero length)
+            if depth >= 0.0:
+                if not inside or depth > best_in:
+                    best_in = depth
+                    piece[i] = k
+                    edge[i] = depth_edge
+                inside = True
+            elif not inside and dist < best_out:
+                best_out = dist
+                piece[i] = k
+                edge[i] = dist_edge
+        excess[i] = -best_in if inside else best_out
+
+
 # ------------------------------------------------------------------ public API
 
 
@@ -333,6 +402,34 @@ def swept_box_ttc(corners_a: np.ndarray, vel_a: np.ndarray, corners_b: np.ndarra
     return out.reshape(shape)
 
 
+def polygons_excess(points_xy_m: np.ndarray, polygons_xy_m: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Signed excess [m] of points (P, 2) over the union of convex polygons (K, V, 2),
+    each counter-clockwise (a triangle may repeat a vertex): one compiled call.
+
+    Outside every polygon the excess is the Euclidean distance to the nearest one (the
+    smallest point-to-edge distance, exact for convex polygons); inside it is minus the
+    largest depth over the polygons holding the point (depth in a convex polygon = the
+    smallest distance to the lines of its edges), a lower bound of the depth in the
+    union. Returns (excess (P,) [m], polygon (P,), edge (P,)): the polygon and edge
+    (j from vertex j to j + 1) that give the value (the nearest edge of the nearest
+    polygon outside, the nearest edge of the deepest one inside); NaN, -1, -1 for a
+    point with a NaN coordinate or without polygons."""
+    pts = np.ascontiguousarray(np.asarray(points_xy_m, dtype=np.float64).reshape(-1, 2))
+    polys = np.ascontiguousarray(np.asarray(polygons_xy_m, dtype=np.float64))
+    if polys.ndim != 3 or polys.shape[-1] != 2 or polys.shape[1] < 3:
+        raise ValueError(f"polygons must have shape (K, V >= 3, 2), got {polys.shape}")
+    n = pts.shape[0]
+    excess = np.empty(n)
+    piece = np.empty(n, dtype=np.int64)
+    edge = np.empty(n, dtype=np.int64)
+    bbox = (np.concatenate([polys.min(axis=1), polys.max(axis=1)], axis=1) if polys.shape[0]
+            else np.zeros((0, 4)))
+    _polygons_excess_kernel(np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
+                            polys, np.ascontiguousarray(bbox), excess, piece, edge)
+    return excess, piece, edge
+
+
 def load_kernels() -> None:
     """Load (or compile once) every kernel of this module by calling it on tiny inputs: a
     process that forks scenario processes calls it once, so that they inherit the
@@ -344,6 +441,7 @@ def load_kernels() -> None:
     z = np.zeros(1)
     box_gaps(0.0, 0.0, 0.0, 4.0, 2.0, z, z, z, z + 4.0, z + 2.0)
     nearest_box(0.0, 0.0, 0.0, 4.0, 2.0, z, z, z, z + 4.0, z + 2.0)
+    polygons_excess(np.zeros((1, 2)), one)
 
 
 # ------------------------------------------------------------------ numpy references

@@ -38,7 +38,6 @@ from controllers.protocol import (
 from reports.record import (
     RRD,
     ControllerArrays,
-    LaneRecord,
     NeighbourColumns,
     RoadRecord,
     RunInfo,
@@ -53,6 +52,7 @@ from reports.record.verdict import Verdict
 from suite.catalog import Scenario
 from suite.road.lanes import LaneContextMap
 from suite.road.network import RoadNetwork
+from suite.road.record import route_lane_records
 from suite.road.route_reference import RouteReference, build_reference
 from suite.run.dynamics import EgoDynamics, PlantDynamics, SumoDrivenDynamics
 from suite.run.ego import EgoProjector
@@ -156,32 +156,11 @@ WINDOW_AHEAD_M = 500.0  # ... and this much beyond what it can reach in the run
 
 def road_record(network: RoadNetwork, route: tuple[str, ...], reference: np.ndarray,
                 path: FrenetPath) -> RoadRecord:
-    """Every lane of every route edge, the internal junction lanes between consecutive
-    route edges (part of the road: the drivable area includes them), the reference."""
-    lanes = [LaneRecord(id=li.id, edge_id=li.edge_id, index=li.index, width_m=li.width_m,
-                        shape_xy_m=np.asarray(li.shape_xy_m, dtype=np.float64),
-                        allowed=li.allowed, is_shoulder=li.is_shoulder,
-                        allows_passenger=li.allows_passenger, speed_mps=li.speed_mps)
-             for li in network.lane_info(route)]
-    seen = {lane.id for lane in lanes}
-    by_id = {lane.id: lane for lane in lanes}
-    for k, edge in enumerate(route[:-1]):
-        for link in network.lane_links(edge):
-            if link.to_edge_id != route[k + 1]:
-                continue
-            source = by_id.get(f"{edge}_{link.from_index}")
-            for via_id, shape, width in zip(link.via_ids, link.via_shapes, link.via_widths_m,
-                                            strict=True):
-                if via_id in seen or source is None:
-                    continue
-                seen.add(via_id)
-                lanes.append(LaneRecord(
-                    id=via_id, edge_id=via_id.rsplit("_", 1)[0], index=link.from_index,
-                    width_m=width, shape_xy_m=np.asarray(shape, dtype=np.float64),
-                    allowed=source.allowed, is_shoulder=source.is_shoulder,
-                    allows_passenger=source.allows_passenger, speed_mps=source.speed_mps,
-                    internal=True))
-    return RoadRecord(lanes=tuple(lanes), reference_xy_m=np.asarray(reference, dtype=np.float64),
+    """Every lane of every route edge and the internal junction lanes between consecutive
+    route edges (:func:`suite.road.record.route_lane_records`: the drivable area is
+    built from them), and the reference."""
+    return RoadRecord(lanes=route_lane_records(network, route),
+                      reference_xy_m=np.asarray(reference, dtype=np.float64),
                       reference_length_m=float(path.length_m), route=route)
 
 
