@@ -1,0 +1,129 @@
+"""The history database's schema: its versions and the migrations between them.
+
+Every database records the versions applied in ``schema_version`` (one row per
+version, the newest is the schema of the file). :func:`ensure_schema` creates an empty
+file at version 1 and applies each migration in order up to :data:`SCHEMA_VERSION`, in
+one transaction per step, so a file is always at a whole version. A file written by a
+newer hwyeval (a version above :data:`SCHEMA_VERSION`) is refused, never altered.
+
+Version 1 (the first release): ``nights`` (one row per night: id, start, git revision,
+hwyeval version, host, catalog path) and ``runs`` (one row per scenario of a night:
+scenario, its content hash, controller, status, results.csv's ``failed_criteria`` text,
+and one DOUBLE column per metric of results.csv, added as nights bring new metrics).
+
+Version 2: ``nights`` gains ``git_dirty``, ``catalog_sha256``, ``out_dir`` (where the
+night's run directories are: ``compare --history`` reads them), ``night_sha256`` (the
+content digest that tells a repeated add from a conflicting one) and ``added_at``;
+``runs`` gains ``failure_modes`` (the failed criteria's metric names, a list; filled
+from ``failed_criteria`` for version-1 rows), ``limits`` (metric -> limit in force,
+a MAP) and ``run_dir``. docs/history.md describes every column.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+SCHEMA_VERSION = 2
+
+# The columns of ``runs`` that are not metrics (a metric of that name is refused).
+RUN_KEY_COLUMNS = ("night_id", "scenario", "scenario_hash", "controller", "status",
+                   "failed_criteria", "failure_modes", "limits", "run_dir")
+METRIC_NAME = re.compile(r"^[a-z][a-z0-9_]{0,62}$")
+
+V1_DDL = (
+    "CREATE TABLE schema_version (version INTEGER NOT NULL PRIMARY KEY, "
+    "applied_at TIMESTAMPTZ NOT NULL DEFAULT current_timestamp)",
+    "CREATE TABLE nights (night_id VARCHAR PRIMARY KEY, started_at TIMESTAMPTZ NOT NULL, "
+    "git_revision VARCHAR NOT NULL, hwyeval_version VARCHAR NOT NULL, host VARCHAR NOT NULL, "
+    "catalog VARCHAR NOT NULL)",
+    "CREATE TABLE runs (night_id VARCHAR NOT NULL, scenario VARCHAR NOT NULL, "
+    "scenario_hash VARCHAR NOT NULL, controller VARCHAR NOT NULL, status VARCHAR NOT NULL, "
+    "failed_criteria VARCHAR NOT NULL, PRIMARY KEY (night_id, scenario, controller))",
+    "INSERT INTO schema_version (version) VALUES (1)",
+)
+
+# version -> the statements that take a file from version - 1 to it
+MIGRATIONS: dict[int, tuple[str, ...]] = {
+    2: (
+        "ALTER TABLE nights ADD COLUMN git_dirty BOOLEAN",
+        "ALTER TABLE nights ADD COLUMN catalog_sha256 VARCHAR NOT NULL DEFAULT ''",
+        "ALTER TABLE nights ADD COLUMN out_dir VARCHAR NOT NULL DEFAULT ''",
+        "ALTER TABLE nights ADD COLUMN night_sha256 VARCHAR NOT NULL DEFAULT ''",
+        "ALTER TABLE nights ADD COLUMN added_at TIMESTAMPTZ",
+        "ALTER TABLE runs ADD COLUMN failure_modes VARCHAR[]",
+        "UPDATE runs SET failure_modes = CASE WHEN failed_criteria = '' THEN []::VARCHAR[] "
+        "ELSE list_transform(string_split(failed_criteria, ';'), "
+        "lambda f: regexp_extract(f, '^[^=<>]+')) END",
+        "ALTER TABLE runs ADD COLUMN limits MAP(VARCHAR, DOUBLE)",
+        "ALTER TABLE runs ADD COLUMN run_dir VARCHAR NOT NULL DEFAULT ''",
+        "INSERT INTO schema_version (version) VALUES (2)",
+    ),
+}
+
+
+class HistoryError(ValueError):
+    """A history database or night that cannot be used (the CLI exits 2); the message
+    names the file and what was expected."""
+
+
+def schema_version(con: Any) -> int:
+    """The schema version of an open database (0: an empty file)."""
+    tables = {row[0] for row in con.execute(
+        "SELECT table_name FROM information_schema.tables WHERE table_schema = 'main'"
+    ).fetchall()}
+    if "schema_version" not in tables:
+        if tables & {"nights", "runs"}:
+            raise HistoryError("the database has tables nights/runs but no schema_version: "
+                               "not an hwyeval history database")
+        return 0
+    row = con.execute("SELECT max(version) FROM schema_version").fetchone()
+    return int(row[0]) if row is not None and row[0] is not None else 0
+
+
+def ensure_schema(con: Any, where: str = "") -> int:
+    """Bring an open read-write database to :data:`SCHEMA_VERSION`; returns the version
+    it had before (0: it was empty). Raises :class:`HistoryError` for a newer file."""
+    before = schema_version(con)
+    if before > SCHEMA_VERSION:
+        raise HistoryError(f"{where}: schema_version {before} was written by a newer hwyeval "
+                           f"(this one reads up to {SCHEMA_VERSION}); nothing was changed")
+    steps: list[tuple[str, ...]] = []
+    if before == 0:
+        steps.append(V1_DDL)
+    steps.extend(MIGRATIONS[v] for v in range(max(before, 1) + 1, SCHEMA_VERSION + 1))
+    for statements in steps:
+        con.execute("BEGIN TRANSACTION")
+        try:
+            for sql in statements:
+                con.execute(sql)
+        except Exception:
+            con.execute("ROLLBACK")
+            raise
+        con.execute("COMMIT")
+    return before
+
+
+def metric_columns(con: Any) -> list[str]:
+    """The metric columns of ``runs`` (every column that is not a key column), in table
+    order."""
+    rows = con.execute("SELECT column_name FROM information_schema.columns "
+                       "WHERE table_schema = 'main' AND table_name = 'runs' "
+                       "ORDER BY ordinal_position").fetchall()
+    return [r[0] for r in rows if r[0] not in RUN_KEY_COLUMNS]
+
+
+def add_metric_columns(con: Any, names: list[str]) -> list[str]:
+    """Add a DOUBLE column to ``runs`` for every name not there yet; returns those
+    added. Names must match :data:`METRIC_NAME` (results.csv's metric names do)."""
+    have = set(metric_columns(con))
+    added = []
+    for name in names:
+        if name in have:
+            continue
+        if not METRIC_NAME.match(name) or name in RUN_KEY_COLUMNS:
+            raise HistoryError(f"metric {name!r}: expected a lower-case identifier "
+                               "([a-z][a-z0-9_]*) that is not a key column of runs")
+        con.execute(f'ALTER TABLE runs ADD COLUMN "{name}" DOUBLE')
+        added.append(name)
+    return added
