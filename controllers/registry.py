@@ -176,6 +176,13 @@ def plugin_errors() -> dict[str, str]:
     return dict(_ERRORS)
 
 
+def factory_module(name: str) -> str:
+    """The module that defines controller ``name``'s factory (what a plug-in's source
+    hash covers); KeyError for an unknown name."""
+    factory = _all()[name]
+    return str(getattr(factory, "__module__", "") or "")
+
+
 def origin(name: str) -> str:
     """Where controller ``name`` comes from: 'built in', an entry point, a module."""
     load_entry_points()

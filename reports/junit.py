@@ -16,7 +16,9 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 
+from reports.manifest import Manifest, not_run
 from reports.record import Failure
+from reports.record.codec import write_text_atomic
 from reports.tables import RunEntry
 
 _INVALID_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
@@ -47,8 +49,38 @@ def _safe_name(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_\-]+", "_", text) or "_"
 
 
-def junit_tree(runs: Sequence[RunEntry], suite_name: str = "hwyeval") -> ET.ElementTree:
-    """The JUnit XML tree for the runs."""
+def _properties(parent: ET.Element, manifest: Manifest | None) -> None:
+    """``<properties>``: the catalog, git revision (and dirty), hwyeval version, host."""
+    if manifest is None:
+        return
+    p = manifest.provenance
+    props = ET.SubElement(parent, "properties")
+    for name, value in (("catalog", manifest.catalog), ("git_revision", p.git_sha),
+                        ("git_dirty", str(bool(p.git_dirty)).lower()),
+                        ("hwyeval_version", p.hwyeval_version), ("host", p.host),
+                        ("started", manifest.started)):
+        ET.SubElement(props, "property", name=name, value=xml_text(str(value)))
+
+
+def _not_run_suite(root: ET.Element, suite_name: str, names: Sequence[str],
+                   manifest: Manifest | None) -> None:
+    """The scenarios the manifest lists that were not run (an interrupted night), as
+    skipped test cases: a stopped run never reads as complete and green."""
+    suite = ET.SubElement(root, "testsuite", name=xml_text(f"{suite_name}.not_run"),
+                          tests=str(len(names)), failures="0", errors="0",
+                          skipped=str(len(names)), time="0")
+    _properties(suite, manifest)
+    for name in names:
+        case = ET.SubElement(suite, "testcase", name=xml_text(name), classname="not_run",
+                             time="0")
+        ET.SubElement(case, "skipped", message="not run (the run was interrupted; "
+                      "hwyeval run ... --resume runs it)")
+
+
+def junit_tree(runs: Sequence[RunEntry], suite_name: str = "hwyeval",
+               manifest: Manifest | None = None) -> ET.ElementTree:
+    """The JUnit XML tree for the runs, with the manifest's provenance as properties and
+    the scenarios it lists that have no run as skipped cases."""
     root = ET.Element("testsuites", name=xml_text(suite_name))
     by_controller: dict[str, list[RunEntry]] = {}
     for run in runs:
@@ -62,6 +94,7 @@ def junit_tree(runs: Sequence[RunEntry], suite_name: str = "hwyeval") -> ET.Elem
         suite = ET.SubElement(root, "testsuite", name=xml_text(f"{suite_name}.{controller}"),
                               tests=str(len(members)), failures=str(failures),
                               errors=str(errors), skipped="0", time=f"{time_s:.3f}")
+        _properties(suite, manifest)
         for run in members:
             case = ET.SubElement(suite, "testcase", name=xml_text(run.scenario),
                                  classname=f"{_safe_name(run.controller)}."
@@ -91,7 +124,11 @@ def junit_tree(runs: Sequence[RunEntry], suite_name: str = "hwyeval") -> ET.Elem
         totals["failures"] += failures
         totals["errors"] += errors
         totals["time"] += time_s
-    root.set("tests", str(int(totals["tests"])))
+    skipped = not_run(manifest, [n for r in runs for n in (r.scenario, r.run_id)])
+    if skipped:
+        _not_run_suite(root, suite_name, skipped, manifest)
+    root.set("tests", str(int(totals["tests"]) + len(skipped)))
+    root.set("skipped", str(len(skipped)))
     root.set("failures", str(int(totals["failures"])))
     root.set("errors", str(int(totals["errors"])))
     root.set("time", f"{totals['time']:.3f}")
@@ -99,8 +136,13 @@ def junit_tree(runs: Sequence[RunEntry], suite_name: str = "hwyeval") -> ET.Elem
     return ET.ElementTree(root)
 
 
-def write_junit(runs: Sequence[RunEntry], path: str | Path) -> Path:
+def write_junit(runs: Sequence[RunEntry], path: str | Path,
+                manifest: Manifest | None = None) -> Path:
     """Write junit.xml; returns its path."""
     path = Path(path)
-    junit_tree(runs).write(path, encoding="utf-8", xml_declaration=True)
+    root = junit_tree(runs, manifest=manifest).getroot()
+    if root is None:  # junit_tree always builds a <testsuites> root
+        raise ValueError("junit_tree built no root element")
+    text = ET.tostring(root, encoding="unicode")
+    write_text_atomic(path, "<?xml version='1.0' encoding='utf-8'?>\n" + text)
     return path

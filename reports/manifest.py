@@ -9,6 +9,7 @@ hwyeval) is reported with an unknown provenance, never refused.
 from __future__ import annotations
 
 import datetime as _dt
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -43,6 +44,15 @@ class Manifest:
     def finish(self) -> Manifest:
         """This manifest with ``finished`` and the provenance's end load set now."""
         return replace(self, finished=now_iso(), provenance=self.provenance.finished())
+
+
+def not_run(manifest: Manifest | None, present: Sequence[str]) -> tuple[str, ...]:
+    """The scenarios the manifest lists that have no run directory (an interrupted run,
+    or one whose directories were removed), in the manifest's order."""
+    if manifest is None:
+        return ()
+    have = set(present)
+    return tuple(name for name in manifest.scenarios if name not in have)
 
 
 def now_iso() -> str:

@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from reports.metrics.evaluate import REQUIRED_METRICS
+from reports.metrics.robustness import robustness
 from reports.metrics.timing import loop_times_s
 from reports.pool import TimePool
 from reports.record import (
@@ -32,9 +33,11 @@ from reports.record import (
     RunOutcome,
     RunRecord,
     Verdict,
+    incomplete_files,
     iter_run_dirs,
     load_run,
 )
+from reports.record.codec import write_text_atomic
 from reports.record.meta import END_OK, STATUSES
 
 LEAD_COLUMNS = ("scenario", "controller", "variant", "status", "collision", "min_gap_m",
@@ -177,6 +180,9 @@ def incomplete(record: RunRecord, parts: Parts) -> str:
         if len(record.series) != len(record.trace):
             return (f"{run_dir.name}: {SERIES} has {len(record.series)} rows, "
                     f"{TRACE} {len(record.trace)}")
+    damaged = incomplete_files(run_dir) if record.run_dir is not None else []
+    if damaged:  # truncated or deleted after the run wrote them: not this run any more
+        return f"{run_dir.name}: incomplete run directory ({'; '.join(damaged)})"
     return ""
 
 
@@ -221,7 +227,8 @@ def metric_names(runs: Sequence[RunEntry]) -> list[str]:
 
 
 def results_frame(runs: Sequence[RunEntry]) -> pd.DataFrame:
-    """One row per run: LEAD_COLUMNS, every metric, failed_criteria, family, run (the run
+    """One row per run: LEAD_COLUMNS, every metric, failed_criteria, robustness and
+    robustness_criterion (:mod:`reports.metrics.robustness`), family, run (the run
     directory's name). Error texts are in junit.xml / report.html / traceback.txt."""
     names = metric_names(runs)
     rows = []
@@ -234,11 +241,14 @@ def results_frame(runs: Sequence[RunEntry]) -> pd.DataFrame:
         for name in names:
             row.setdefault(name, values.get(name, math.nan))
         row["failed_criteria"] = run.verdict.failed_text if run.verdict is not None else ""
+        rob = robustness(run.verdict) if run.verdict is not None else None
+        row["robustness"] = rob.value if rob is not None else math.nan
+        row["robustness_criterion"] = rob.criterion if rob is not None else run.status
         row["family"] = run.family
         row["run"] = run.run_id
         rows.append(row)
     columns = list(LEAD_COLUMNS) + [m for m in names if m not in LEAD_COLUMNS] + [
-        "failed_criteria", "family", "run"]
+        "failed_criteria", "robustness", "robustness_criterion", "family", "run"]
     return pd.DataFrame(rows, columns=columns)
 
 
@@ -312,7 +322,7 @@ def summary_frame(runs: Sequence[RunEntry], pools: Pools | None = None) -> pd.Da
 def write_results_csv(runs: Sequence[RunEntry], path: str | Path) -> Path:
     """Write results.csv; returns its path."""
     path = Path(path)
-    results_frame(runs).to_csv(path, index=False)
+    write_text_atomic(path, results_frame(runs).to_csv(index=False))
     return path
 
 
@@ -320,5 +330,5 @@ def write_summary_csv(runs: Sequence[RunEntry], path: str | Path,
                       pools: Pools | None = None) -> Path:
     """Write summary.csv; returns its path."""
     path = Path(path)
-    summary_frame(runs, pools).to_csv(path, index=False)
+    write_text_atomic(path, summary_frame(runs, pools).to_csv(index=False))
     return path

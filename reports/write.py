@@ -28,7 +28,7 @@ from reports.record import (
     Trace,
     iter_run_dirs,
 )
-from reports.record.codec import read_json
+from reports.record.codec import read_json, write_text_atomic
 from reports.tables import (
     EVERYTHING,
     Pools,
@@ -82,13 +82,12 @@ def _pages(runs: list[tuple[Path, str]], links: Links, title: str, pools: Pools
     """Write every run's page, one run in memory at a time; returns the light entries
     (a run whose files are unreadable comes back as its error entry)."""
     links.pages.mkdir(parents=True, exist_ok=True)
-    (links.pages / "report.css").write_text(CSS, encoding="utf-8")
+    write_text_atomic(links.pages / "report.css", CSS)
     kept = []
     for run_dir, variant in runs:
         full = dataclasses.replace(read_entry(run_dir, EVERYTHING), variant=variant)
         add_to_pools(pools, full)
-        links.page_file(full.run_id).write_text(render_run_page(full, links, title),
-                                                encoding="utf-8")
+        write_text_atomic(links.page_file(full.run_id), render_run_page(full, links, title))
         kept.append(light(full))
     return kept
 
@@ -111,12 +110,12 @@ def write_reports(out_dir: str | Path, dest_dir: str | Path | None = None) -> Re
     pools: Pools = {}
     runs = _pages(list(zip(run_dirs, labels, strict=True)), links, title, pools)
     index = dest / "report.html"
-    index.write_text(render_index(runs, pools, links, title, read_manifest(out_dir)),
-                     encoding="utf-8")
+    manifest = read_manifest(out_dir)
+    write_text_atomic(index, render_index(runs, pools, links, title, manifest))
     return ReportPaths(
         results_csv=write_results_csv(runs, dest / "results.csv"),
         summary_csv=write_summary_csv(runs, dest / "summary.csv", pools),
-        junit_xml=write_junit(runs, dest / "junit.xml"),
+        junit_xml=write_junit(runs, dest / "junit.xml", manifest),
         report_html=index,
         run_pages=links.pages,
     )

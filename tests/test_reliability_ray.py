@@ -131,3 +131,26 @@ def test_ray_runs_a_scenario_whose_net_lies_outside_the_catalogs_folder(tmp_path
     res = pd.read_csv(out / "results.csv").set_index("scenario")
     assert set(res["status"]) == {"pass"} and len(res) == 2
     assert not [p for p in out.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.sumo
+@pytest.mark.slow
+def test_ray_kills_a_hung_run_at_its_budget(tmp_path: Path) -> None:
+    """A step hung in C (the GIL held) on a Ray worker: the run is a timeout within its
+    budget plus the kill grace, as with the local executor, not left running."""
+    import time
+
+    catalog = tmp_path / "hang.toml"
+    catalog.write_text('[defaults]\nduration_s = 10.0\nstep_s = 0.05\n'
+                       '[[scenario]]\nname = "hangs"\nnet = "straight_2lane"\n'
+                       'controller = "hang_at_step_20"\n'
+                       'ego = { lane = 0, pos_m = 60.0, speed_mps = 20.0 }\n')
+    plugin = Path(__file__).with_name("hang_plugin.py")
+    t0 = time.monotonic()
+    proc = hwyeval("run", str(catalog), "--out", str(tmp_path / "out"), "--no-log",
+                   "--executor", "ray", "--timeout", "5", "--plugin", str(plugin))
+    took = time.monotonic() - t0
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    status = pd.read_csv(tmp_path / "out" / "results.csv").set_index("scenario")["status"]
+    assert status["hangs"] == "timeout"
+    assert took < 90.0  # Ray's start, 5 s of budget, the grace: not an hour

@@ -27,10 +27,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from reports.compare.findings import (
+    CATEGORIES,
     CompareRow,
     DuplicateRuns,
+    categorised,
+    change_rows,
     match_keys,
     metric_rows,
+    pair_change,
     status_rows,
 )
 from reports.compare.timing import TimingLine, load_note, timing_lines
@@ -66,6 +70,15 @@ class CompareResult:
 
     def of_kind(self, *kinds: str) -> list[CompareRow]:
         return [r for r in self.rows if r.kind in kinds]
+
+    def of_category(self, category: str) -> list[CompareRow]:
+        """Findings of one category (:data:`reports.compare.findings.CATEGORIES`)."""
+        return [r for r in self.rows if r.category == category]
+
+    @property
+    def category_counts(self) -> dict[str, int]:
+        """Findings per category, every category listed (0 where none)."""
+        return {c: len(self.of_category(c)) for c in CATEGORIES}
 
     @property
     def regressions(self) -> list[CompareRow]:
@@ -122,17 +135,22 @@ def compare_evaluated(base: list[RunEntry], new: list[RunEntry],
         b, n = base_map.get(key), new_map.get(key)
         if n is None and b is not None:
             rows.append(CompareRow(key, b.scenario, b.controller, "missing",
-                                   note="in base only", gate=tol.missing_is_regression))
+                                   note="in base only", gate=tol.missing_is_regression,
+                                   category="removed_scenario"))
             continue
-        if b is None and n is not None:
-            rows.append(CompareRow(key, n.scenario, n.controller, "new",
-                                   note=f"in new only ({n.status})"))
+        if b is None or n is None:
+            if n is not None:
+                rows.append(CompareRow(key, n.scenario, n.controller, "new",
+                                       note=f"in new only ({n.status})",
+                                       category="new_scenario"))
             continue
-        assert b is not None and n is not None
         pairs.append((b, n))
-        rows.extend(status_rows(key, b, n))
+        change = pair_change(b, n)
+        found = status_rows(key, b, n)
         if b.status in ("pass", "fail") and n.status in ("pass", "fail"):
-            rows.extend(metric_rows(key, b, n, tol))
+            found += metric_rows(key, b, n, tol)
+        rows.extend(categorised(r, change) for r in found)
+        rows.extend(change_rows(key, n, change))
     return rows, len(pairs), pairs
 
 

@@ -23,6 +23,29 @@ comparison):
 =====================  =========================================================
 
 Metrics of error/timeout runs are not compared (their status already is).
+
+Categories (``CompareRow.category``; compare --json calls it ``kind`` and the finding
+kind above ``finding``) say *why* a run differs, so that a changed test never reads as
+a controller regression:
+
+======================  ==========================================================
+``behaviour_regression``  a gating finding on a run whose scenario and criteria are
+                          unchanged (same content hash and resolved criteria): gates
+``criteria_changed``      a criterion's limit differs between the two runs: the
+                          findings of that run are listed under it and do not gate
+``waived``                a criterion in force in base is switched off (``"off"``)
+                          in new: listed, does not gate
+``scenario_changed``      the scenario's content hash differs (anything but the
+                          criteria: net, actors, speeds, seed): does not gate
+``removed_scenario``      in base only: gates unless ``missing_is_regression = false``
+``new_scenario``          in new only: informational
+``timing``                wall-clock findings: warn (gate with ``--timing-gate``)
+``improvement``           fixed runs and metrics better beyond tolerance
+``info``                  the rest (status changes that are not worse, NaN metrics)
+======================  ==========================================================
+
+The exit code is 1 when a ``behaviour_regression`` or a gating ``removed_scenario``
+finding exists (or, with the timing gate, a ``timing`` one), else 0.
 """
 
 from __future__ import annotations
@@ -62,6 +85,7 @@ class CompareRow:
     limit: float = math.nan
     note: str = ""
     gate: bool = False
+    category: str = "info"
 
     @property
     def regression(self) -> bool:
@@ -72,6 +96,89 @@ class CompareRow:
     def warning(self) -> bool:
         """A finding reported as a warning (timing or health, not gating)."""
         return self.kind in WARNING_KINDS and not self.gate
+
+
+CATEGORIES = ("behaviour_regression", "criteria_changed", "waived", "scenario_changed",
+              "removed_scenario", "new_scenario", "timing", "improvement", "info")
+GATING_CATEGORIES = ("behaviour_regression", "removed_scenario")  # timing: with the gate
+CONTENT_KEY = "content_sha256"  # RunInfo.scenario_spec's content hash (suite.run.info)
+
+
+@dataclass(frozen=True)
+class PairChange:
+    """What differs in the set-up of a matched pair of runs: the criteria whose limits
+    differ (name, base limit, new limit; None = off), and whether the scenario's content
+    hash differs (both known)."""
+
+    criteria: tuple[tuple[str, float | None, float | None], ...] = ()
+    scenario_changed: bool = False
+
+    @property
+    def waived(self) -> tuple[str, ...]:
+        """Criteria in force in base and switched off in new."""
+        return tuple(name for name, b, n in self.criteria if b is not None and n is None)
+
+    @property
+    def limits_changed(self) -> tuple[tuple[str, float | None, float | None], ...]:
+        """Criteria whose limit changed (not only switched off)."""
+        return tuple(c for c in self.criteria if not (c[1] is not None and c[2] is None))
+
+
+def pair_change(b: RunEntry, n: RunEntry) -> PairChange:
+    """The set-up differences of a matched pair (:class:`PairChange`) from the stored
+    verdicts' resolved criteria and the runs' content hashes."""
+    cb = b.verdict.criteria if b.verdict is not None else {}
+    cn = n.verdict.criteria if n.verdict is not None else {}
+    changed = tuple((name, cb.get(name), cn.get(name)) for name in sorted(set(cb) | set(cn))
+                    if _limit(cb.get(name)) != _limit(cn.get(name)))
+    hb = b.info.scenario_spec.get(CONTENT_KEY) if b.info is not None else None
+    hn = n.info.scenario_spec.get(CONTENT_KEY) if n.info is not None else None
+    return PairChange(changed, bool(hb and hn and hb != hn))
+
+
+def _limit(value: float | None) -> float | None:
+    return None if value is None else float(value)
+
+
+def categorised(row: CompareRow, change: PairChange) -> CompareRow:
+    """``row`` with its category (module doc); a gating behaviour finding of a pair
+    whose criteria or scenario changed no longer gates."""
+    from dataclasses import replace
+
+    if row.kind in ("timing_slower", "timing_faster"):
+        return replace(row, category="timing")
+    if row.kind in BEHAVIOUR_GATES:
+        if change.limits_changed:
+            return replace(row, category="criteria_changed", gate=False)
+        if change.scenario_changed:
+            return replace(row, category="scenario_changed", gate=False)
+        if change.waived:
+            return replace(row, category="waived", gate=False)
+        return replace(row, category="behaviour_regression")
+    if row.kind in GOOD_KINDS:
+        return replace(row, category="improvement")
+    return replace(row, category="info")
+
+
+def change_rows(key: str, n: RunEntry, change: PairChange) -> list[CompareRow]:
+    """One row per changed criterion (``criteria_changed`` or ``waived``) and one for a
+    changed scenario, whether or not the verdict moved: a reader sees every test that
+    changed."""
+    common: dict[str, Any] = {"key": key, "scenario": n.scenario, "controller": n.controller}
+    rows = []
+    for name, b, v in change.criteria:
+        waived = b is not None and v is None
+        text = "off" if v is None else f"{v:g}"
+        rows.append(CompareRow(kind="criterion_off" if waived else "criterion_changed",
+                               metric=name, base=math.nan if b is None else float(b),
+                               new=math.nan if v is None else float(v),
+                               note=f"{name}: {'off' if b is None else f'{b:g}'} → {text}",
+                               category="waived" if waived else "criteria_changed", **common))
+    if change.scenario_changed:
+        rows.append(CompareRow(kind="scenario_changed", note="the scenario's content hash "
+                               "differs (net, actors, speeds, seed or options)",
+                               category="scenario_changed", **common))
+    return rows
 
 
 class DuplicateRuns(ValueError):

@@ -11,15 +11,16 @@ from __future__ import annotations
 import csv
 import datetime as _dt
 import html
+import io
 import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from reports.compare.findings import GOOD_KINDS, CompareRow
+from reports.compare.findings import GATING_CATEGORIES, GOOD_KINDS, CompareRow
 from reports.manifest import Manifest
-from reports.record.codec import to_plain
+from reports.record.codec import to_plain, write_text_atomic
 from reports.tables import RunEntry
 
 if TYPE_CHECKING:
@@ -58,6 +59,11 @@ def row_line(row: CompareRow) -> str:
             change += f" ({row.note})"
         return f"{row.kind:<17} {row.key}: {change}"
     return f"{row.kind:<17} {row.key}: {row.note}"
+
+
+CHANGED_TESTS = (("criteria_changed", "criteria changed: the test, not the controller"),
+                 ("waived", "waived: a criterion switched off"),
+                 ("scenario_changed", "scenario changed: not comparable run for run"))
 
 
 def _listed(rows: Sequence[CompareRow], indent: str = "  ") -> list[str]:
@@ -102,6 +108,11 @@ def summary_text(result: CompareResult) -> str:
     if result.regressions:
         lines.append(f"REGRESSIONS ({len(result.regressions)}):")
         lines += _listed(result.regressions)
+    for category, title in CHANGED_TESTS:
+        rows = result.of_category(category)
+        if rows:
+            lines.append(f"{title} ({len(rows)}, does not gate):")
+            lines += _listed(rows)
     lines += _timing_block(result)
     health = result.of_kind("health_change")
     if health:
@@ -131,6 +142,8 @@ def as_json(result: CompareResult) -> str:
         "exit_code": result.exit_code, "matched": result.matched,
         "base_dir": str(result.base_dir), "new_dir": str(result.new_dir),
         "timing_gate": result.timing_gate,
+        "gating_kinds": list(GATING_CATEGORIES),
+        "counts": result.category_counts,
         "regressions": [_row_plain(r) for r in result.regressions],
         "warnings": [_row_plain(r) for r in result.warnings],
         "timing": to_plain(result.timing),
@@ -144,14 +157,20 @@ def as_json(result: CompareResult) -> str:
 
 
 def _row_plain(row: CompareRow) -> dict[str, Any]:
+    """A finding for JSON: ``kind`` is its category (why it differs: behaviour_regression,
+    scenario_changed, criteria_changed, waived, new_scenario, removed_scenario, timing,
+    improvement, info), ``finding`` what was found (new_failure, metric_regression, ...)."""
     plain: dict[str, Any] = to_plain(row)
+    plain["finding"] = plain.pop("kind")
+    plain["kind"] = plain.pop("category")
     plain["regression"] = row.regression
     plain["warning"] = row.warning
     return plain
 
 
-CSV_COLUMNS = ("key", "scenario", "controller", "kind", "regression", "warning", "metric",
-               "unit", "metric_kind", "base", "new", "delta", "ratio", "limit", "note")
+CSV_COLUMNS = ("key", "scenario", "controller", "category", "kind", "regression", "warning",
+               "metric", "unit", "metric_kind", "base", "new", "delta", "ratio", "limit",
+               "note")
 
 
 def _csv_num(value: float) -> str:
@@ -161,15 +180,17 @@ def _csv_num(value: float) -> str:
 
 
 def write_compare_csv(result: CompareResult, path: Path) -> Path:
-    """compare.csv: one row per finding (columns :data:`CSV_COLUMNS`)."""
-    with open(path, "w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(CSV_COLUMNS)
-        for r in result.rows:
-            writer.writerow([r.key, r.scenario, r.controller, r.kind, int(r.regression),
-                             int(r.warning), r.metric, r.unit, r.metric_kind, _csv_num(r.base),
-                             _csv_num(r.new), _csv_num(r.delta), _csv_num(r.ratio),
-                             _csv_num(r.limit), r.note])
+    """compare.csv: one row per finding (columns :data:`CSV_COLUMNS`), written
+    atomically."""
+    fh = io.StringIO(newline="")
+    writer = csv.writer(fh)
+    writer.writerow(CSV_COLUMNS)
+    for r in result.rows:
+        writer.writerow([r.key, r.scenario, r.controller, r.category, r.kind, int(r.regression),
+                         int(r.warning), r.metric, r.unit, r.metric_kind, _csv_num(r.base),
+                         _csv_num(r.new), _csv_num(r.delta), _csv_num(r.ratio),
+                         _csv_num(r.limit), r.note])
+    write_text_atomic(path, fh.getvalue())
     return path
 
 
@@ -186,19 +207,49 @@ h2{font-size:16px;margin:22px 0 6px}.none{color:#94a3b8;font-style:italic}
 """
 
 
-def _table(rows: Sequence[CompareRow], title: str) -> str:
+RunLinks = dict[str, tuple[str, str]]  # finding key -> (base page href, new page href)
+
+
+def run_links(result: CompareResult, page: Path, base: Sequence[RunEntry],
+              new: Sequence[RunEntry]) -> RunLinks:
+    """For each finding's key, the hrefs (relative to ``page``) of the run's page in the
+    base and the new report ('' where that page does not exist)."""
+    import os
+
+    def href(side_dir: Path, runs: Sequence[RunEntry], scenario: str, controller: str) -> str:
+        for r in runs:
+            if r.scenario == scenario and r.controller == controller:
+                target = side_dir / "report-runs" / f"{r.run_id}.html"
+                if target.is_file():
+                    return os.path.relpath(target.absolute(), page.parent.absolute())
+        return ""
+
+    return {row.key: (href(result.base_dir, base, row.scenario, row.controller),
+                      href(result.new_dir, new, row.scenario, row.controller))
+            for row in result.rows}
+
+
+def _run_cell(row: CompareRow, links: RunLinks | None) -> str:
+    esc = html.escape
+    b, n = (links or {}).get(row.key, ("", ""))
+    parts = [f'<a href="{esc(h)}">{label}</a>' for h, label in ((b, "base"), (n, "new")) if h]
+    return esc(row.key) + (f" <small>({' · '.join(parts)})</small>" if parts else "")
+
+
+def _table(rows: Sequence[CompareRow], title: str, links: RunLinks | None = None) -> str:
     esc = html.escape
     if not rows:
         return f"<h2>{esc(title)}</h2><p class=\"none\">none</p>"
-    head = ("<tr><th>run</th><th>kind</th><th>metric</th><th>base</th><th>new</th>"
-            "<th>Δ</th><th>ratio new/base</th><th>limit</th><th>note</th></tr>")
+    head = ("<tr><th>run</th><th>category</th><th>finding</th><th>metric</th><th>base</th>"
+            "<th>new</th><th>Δ</th><th>ratio new/base</th><th>limit</th><th>note</th></tr>")
     body = []
     for r in rows:
         cls = "reg" if r.regression else "warn" if r.warning else (
             "good" if r.kind in GOOD_KINDS else "")
         ratio = f"×{r.ratio:.3g}" if math.isfinite(r.ratio) else "–"
         limit_unit = "" if math.isfinite(r.ratio) else r.unit
-        body.append(f'<tr class="{cls}"><td>{esc(r.key)}</td><td>{esc(r.kind)}</td>'
+        body.append(f'<tr class="{cls}"><td>{_run_cell(r, links)}</td>'
+                    f"<td>{esc(r.category)}</td><td>{esc(r.kind)}</td>"
                     f"<td>{esc(r.metric)}</td><td class=\"num\">{esc(num(r.base, r.unit))}</td>"
                     f"<td class=\"num\">{esc(num(r.new, r.unit))}</td>"
                     f"<td class=\"num\">{esc(num(r.delta, r.unit))}</td>"
@@ -266,6 +317,7 @@ def write_compare_html(result: CompareResult, path: Path, base: Sequence[RunEntr
         ctrl_rows.append(f"<tr><td>{esc(ctrl)}</td><td>{esc(cells[0])}</td>"
                          f"<td>{esc(cells[1])}</td></tr>")
     now = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    links = run_links(result, path, base, new)
     parts = [
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
         '<link rel="icon" href="data:,">'
@@ -276,17 +328,19 @@ def write_compare_html(result: CompareResult, path: Path, base: Sequence[RunEntr
         f"{len(result.new_failures)} new failures · {len(result.fixed)} fixed · "
         f"{len(result.missing)} missing · {len(result.added)} new · "
         f"{len(result.warnings)} warnings · generated {esc(now)}</div></header><main>",
-        _table(result.regressions, "Regressions"),
+        _table(result.regressions, "Regressions (behaviour; gate)", links),
+        *(_table(result.of_category(c), f"{t} (do not gate)", links) for c, t in CHANGED_TESTS),
         _timing_table(result),
-        _table(result.warnings, "Warnings (timing, health)"),
+        _table(result.warnings, "Warnings (timing, health)", links),
         _provenance_table(result),
         "<h2>Status per controller</h2><table><tr><th>controller</th><th>base</th><th>new</th>"
         f"</tr>{''.join(ctrl_rows)}</table>",
-        _table(result.of_kind("fixed"), "Fixed"),
-        _table(result.of_kind("missing", "new"), "Missing / new runs"),
-        _table(result.of_kind("status_change", "metric_nan"), "Other status / metric changes"),
-        _table(result.of_kind("metric_improvement", "timing_faster"), "Improvements"),
+        _table(result.of_kind("fixed"), "Fixed", links),
+        _table(result.of_kind("missing", "new"), "Missing / new runs", links),
+        _table(result.of_kind("status_change", "metric_nan"), "Other status / metric changes",
+               links),
+        _table(result.of_kind("metric_improvement", "timing_faster"), "Improvements", links),
         "</main></body></html>",
     ]
-    path.write_text("\n".join(parts), encoding="utf-8")
+    write_text_atomic(path, "\n".join(parts))
     return path

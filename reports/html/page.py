@@ -23,7 +23,7 @@ from reports.html.charts import PALETTE, Series, esc, fmt, line_chart
 from reports.html.failures import STATUS_ORDER, badge, failures_section, log_link
 from reports.html.links import Links
 from reports.html.style import CSS
-from reports.manifest import Manifest
+from reports.manifest import Manifest, not_run
 from reports.record.meta import STATUSES
 from reports.tables import Pools, RunEntry, summary_frame
 from reports.variants import matrix_row
@@ -214,6 +214,19 @@ JS = """
 """
 
 
+def not_run_section(names: Sequence[str]) -> str:
+    """The banner of an interrupted run: which scenarios of the catalog were not run
+    ('' when every one was), above the failures list, so the page never reads as a
+    complete, green night."""
+    if not names:
+        return ""
+    shown = ", ".join(names[:20]) + (f" (+{len(names) - 20} more)" if len(names) > 20 else "")
+    return ('<section id="not-run" class="notrun"><h2>Interrupted: '
+            f"{len(names)} scenario{'' if len(names) == 1 else 's'} not run</h2>"
+            f"<p>{esc(shown)}. <code>hwyeval run CATALOG --out DIR --resume</code> runs "
+            "them; the runs below are the ones that finished.</p></section>")
+
+
 def render_index(runs: Sequence[RunEntry], pools: Pools, links: Links, title: str,
                  manifest: Manifest | None = None) -> str:
     """The index page as a string (module doc)."""
@@ -237,6 +250,7 @@ def render_index(runs: Sequence[RunEntry], pools: Pools, links: Links, title: st
         '<nav><a href="#failures">failures</a> · <a href="#matrix">matrix</a> · '
         '<a href="#summary">summary</a> · <a href="#timing">timing</a> · '
         '<a href="#runs">runs</a></nav></header><main>',
+        not_run_section(not_run(manifest, [n for r in runs for n in (r.scenario, r.run_id)])),
         failures_section(runs, links),
         matrix_tables(runs, links),
         summary_tables(summary_frame(runs, pools)),

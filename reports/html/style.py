@@ -22,6 +22,7 @@ padding:0 6px;font-size:12px;font-weight:600}
 .badge.pass{background:var(--pass)}.badge.fail{background:var(--fail)}
 .badge.error{background:var(--error)}.badge.timeout{background:var(--timeout)}
 .badge.nolog{background:#718096}
+section.notrun{background:#fffbeb;border:1px solid #f59e0b;border-radius:6px;padding:4px 14px}
 details.run{background:#fff;border:1px solid #e2e8f0;border-radius:6px;margin:8px 0;
 padding:6px 12px}
 details.run>summary{cursor:pointer;padding:4px 0}

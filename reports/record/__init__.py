@@ -36,6 +36,7 @@ from reports.record.run import (
     TRACEBACK,
     ControllerArrays,
     RunRecord,
+    incomplete_files,
     iter_run_dirs,
     load_run,
     write_run,
@@ -49,5 +50,5 @@ __all__ = [
     "EgoColumns", "Failure", "LaneRecord", "MetricValue", "NeighbourColumns", "RecordError",
     "RoadRecord", "RunInfo", "RunOutcome", "RunRecord", "SafetyColumns", "SeriesColumns",
     "SsmSummary", "StalledVehicle", "SumoCollision", "TimingColumns", "Trace", "Verdict",
-    "iter_run_dirs", "load_run", "write_run", "write_run_json",
+    "incomplete_files", "iter_run_dirs", "load_run", "write_run", "write_run_json",
 ]

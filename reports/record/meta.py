@@ -88,6 +88,26 @@ class SsmSummary:
 
 
 @dataclass(frozen=True)
+class FileDigest:
+    """A file of a run directory as run.json lists it when written: ``name`` (in the
+    run directory), ``size_bytes`` and ``sha256`` (hex) of its content. A directory
+    counts as complete only when every listed file is there with that size (the
+    reports) and, for ``--resume``, that content."""
+
+    name: str
+    size_bytes: int
+    sha256: str
+
+    def __post_init__(self) -> None:
+        if not self.name or "/" in self.name or self.name.startswith("."):
+            raise ValueError(f"FileDigest.name must be a plain file name, got {self.name!r}")
+        if self.size_bytes < 0:
+            raise ValueError(f"FileDigest.size_bytes must be >= 0, got {self.size_bytes!r}")
+        if len(self.sha256) != 64 or any(c not in "0123456789abcdef" for c in self.sha256):
+            raise ValueError(f"FileDigest.sha256 must be 64 hex digits, got {self.sha256!r}")
+
+
+@dataclass(frozen=True)
 class RunOutcome:
     """How the run went. ``end`` is 'ok' when the loop completed its stop rules, else
     'error' or 'timeout'; the final status (pass/fail/error/timeout) is the verdict's."""

@@ -42,6 +42,7 @@ one complete run, never an older run's files mixed with a newer one's.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 import shutil
@@ -63,7 +64,7 @@ from reports.record.codec import (
     write_json_atomic,
 )
 from reports.record.columns import NeighbourColumns, SeriesColumns, Trace
-from reports.record.meta import RunInfo, RunOutcome
+from reports.record.meta import FileDigest, RunInfo, RunOutcome
 from reports.record.road import RoadRecord
 from reports.record.verdict import Verdict
 
@@ -163,11 +164,63 @@ def write_run_atomic(record: RunRecord, final: Path) -> None:
 
 
 def write_run_json(record: RunRecord, run_dir: Path) -> None:
-    """(Re)write run.json from ``record.info``/``outcome``/``verdict`` (atomic)."""
+    """(Re)write run.json from ``record.info``/``outcome``/``verdict`` (atomic), with the
+    digest of every other file of the run directory (``files``: :class:`FileDigest`)."""
     doc: dict[str, Any] = {"schema": SCHEMA_VERSION, "info": to_plain(record.info),
                            "outcome": to_plain(record.outcome),
-                           "verdict": to_plain(record.verdict) if record.verdict else None}
+                           "verdict": to_plain(record.verdict) if record.verdict else None,
+                           "files": to_plain(file_digests(run_dir))}
     write_json_atomic(run_dir / RUN_JSON, doc)
+
+
+def file_digests(run_dir: Path) -> tuple[FileDigest, ...]:
+    """Size and SHA-256 of every regular file directly in ``run_dir`` but run.json (and
+    hidden temporaries), by name."""
+    out = []
+    for path in sorted(run_dir.iterdir()):
+        if path.name == RUN_JSON or path.name.startswith(".") or not path.is_file() \
+                or path.is_symlink():
+            continue
+        out.append(FileDigest(path.name, path.stat().st_size, _sha256_of(path)))
+    return tuple(out)
+
+
+def read_file_digests(run_dir: Path) -> tuple[FileDigest, ...]:
+    """The ``files`` run.json lists (() for a run.json written without them)."""
+    path = run_dir / RUN_JSON
+    doc = read_json(path)
+    raw = doc.get("files") if isinstance(doc, dict) else None
+    if raw is None:
+        return ()
+    if not isinstance(raw, list):
+        raise RecordError(path, "files", "a list of {name, size_bytes, sha256}", raw)
+    return tuple(decode_dataclass(FileDigest, item, path, f"files[{i}]")
+                 for i, item in enumerate(raw))
+
+
+def incomplete_files(run_dir: Path, *, contents: bool = False) -> list[str]:
+    """What is wrong with the files run.json lists ([] when complete, or when it lists
+    none): a file missing or of another size, and with ``contents`` another SHA-256.
+    Each entry is ``<name>: <what>``."""
+    problems = []
+    for d in read_file_digests(run_dir):
+        path = run_dir / d.name
+        if not path.is_file():
+            problems.append(f"{d.name}: missing")
+        elif path.stat().st_size != d.size_bytes:
+            problems.append(f"{d.name}: {path.stat().st_size} bytes, run.json says "
+                            f"{d.size_bytes}")
+        elif contents and FileDigest(d.name, 0, _sha256_of(path)).sha256 != d.sha256:
+            problems.append(f"{d.name}: content differs from run.json's checksum")
+    return problems
+
+
+def _sha256_of(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def read_run_json(run_dir: Path) -> tuple[RunInfo, RunOutcome, Verdict | None]:

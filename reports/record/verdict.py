@@ -146,6 +146,13 @@ class Verdict:
     # where SUMO's collision report and the 2-D box test disagree (metrics.md)
     collision_disagreements: tuple[CollisionDisagreement, ...] = ()
 
+    def __post_init__(self) -> None:
+        # anything else (a hand-edited "pass<script>") would be copied into results.csv
+        # and counted by one report as passed and by another as failed
+        if self.status not in VERDICT_STATUSES:
+            raise ValueError(f"Verdict.status must be one of {VERDICT_STATUSES}, "
+                             f"got {self.status!r}")
+
     def metric(self, name: str) -> MetricValue | None:
         for m in self.metrics:
             if m.name == name:
@@ -164,6 +171,9 @@ class Verdict:
     def failed_text(self) -> str:
         """Failures joined by ';' (results.csv's ``failed_criteria``)."""
         return ";".join(f.text for f in self.failures)
+
+
+VERDICT_STATUSES = ("pass", "fail", "error", "timeout")
 
 
 def fmt_value(value: float) -> str:

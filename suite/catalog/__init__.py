@@ -11,7 +11,7 @@ This file format is a public contract. A catalog looks like::
     [[scenario]]
     name = "s3_stall_mid"           # unique; [a-z0-9_]+
     net = "straight_3lane"          # a bundled net, or a .net.xml path relative to this file
-    route = ["e0"]                  # optional; default: the longest edge path through the net
+    route = ["e0"]                  # optional; default: the through carriageway's longest path
     ego = { lane = 1, pos_m = 50.0, speed_mps = 25.0, target_speed_mps = 25.0 }
     stalled = [ { lane = 1, pos_m = 400.0 } ]        # zero or more; pos_m along the route
     traffic = { vehicles_per_hour = 1500, seed = 7 } # optional background traffic

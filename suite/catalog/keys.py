@@ -9,9 +9,10 @@ __all__ = ["DEFAULT_KEYS", "OPTIONAL_SUBKEYS", "REQUIRED_KEYS", "SCENARIO_KEYS"]
 SCENARIO_KEYS = (
     "name", "net", "route", "ego", "stalled", "traffic", "controller", "duration_s", "step_s",
     "seed", "allow_shoulder", "criteria", "record_radius_m", "timeout_s", "friction",
-    "ramp_traffic", "actors", "sumo_step_s", "sweep",
+    "ramp_traffic", "actors", "sumo_step_s", "sweep", "search",
 )
-DEFAULT_KEYS = tuple(k for k in SCENARIO_KEYS if k not in ("name", "sweep"))
+# ``search`` is read by ``hwyeval search`` (suite.search.space); run and list ignore it
+DEFAULT_KEYS = tuple(k for k in SCENARIO_KEYS if k not in ("name", "sweep", "search"))
 REQUIRED_KEYS = ("name", "net", "ego", "controller", "duration_s", "step_s")
 OPTIONAL_SUBKEYS: dict[str, tuple[str, ...]] = {
     "ego": ("lane", "pos_m", "speed_mps", "target_speed_mps"),

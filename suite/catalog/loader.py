@@ -37,7 +37,7 @@ from suite.catalog.sweep import (
     sweep_shorts,
 )
 
-__all__ = ["MAX_STEPS", "load_catalog"]
+__all__ = ["MAX_STEPS", "load_catalog", "load_catalog_doc", "merge_scenario"]
 
 # At most this many control steps per run: the trace is allocated for the whole run
 # (~0.5 kB a step), so 1e6 steps (5.6 h at 20 ms) is ~0.5 GB; more is a typo.
@@ -69,6 +69,20 @@ def load_catalog(path: str | Path, *, known_controllers: Iterable[str] | None = 
         raise CatalogError(cat_path, [CatalogIssue(
             "catalog", f"a readable UTF-8 TOML file ({exc})", MISSING)]) from exc
     return _Loader(cat_path, doc, known_controllers).run()
+
+
+def load_catalog_doc(path: str | Path, doc: dict[str, Any], *,
+                     known_controllers: Iterable[str] | None = None) -> Catalog:
+    """:func:`load_catalog` of an already parsed TOML document ``doc``, as if read from
+    ``path`` (relative net paths resolve against it). Used by ``hwyeval search`` to check
+    and build each drawn point exactly as a catalog scenario."""
+    return _Loader(Path(path), doc, known_controllers).run()
+
+
+def merge_scenario(defaults: dict[str, Any], entry: dict[str, Any]) -> dict[str, Any]:
+    """A ``[[scenario]]`` table with ``[defaults]`` merged in (as the loader merges it;
+    without ``sweep`` and ``search``)."""
+    return _merge(defaults, entry)
 
 
 class _Loader:
@@ -249,7 +263,7 @@ def _merge(defaults: dict[str, Any], entry: dict[str, Any]) -> dict[str, Any]:
     ``criteria`` merged name by name."""
     merged: dict[str, Any] = copy.deepcopy(defaults)
     for key, value in entry.items():
-        if key not in SCENARIO_KEYS or key == "sweep":
+        if key not in SCENARIO_KEYS or key in ("sweep", "search"):
             continue
         if key == "criteria" and isinstance(value, dict) and isinstance(
                 merged.get("criteria"), dict):

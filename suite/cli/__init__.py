@@ -44,6 +44,7 @@ from suite.cli.common import (
     positive_int,
     positive_seconds,
 )
+from suite.cli.history import add_history_parser
 from suite.cli.paper import add_paper_parser
 from suite.cli.run import cmd_run
 
@@ -94,6 +95,10 @@ def _run_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
                         "timeout_s, else 60 s + 10 x duration_s, at most 1 h)")
     s.add_argument("--executor", choices=["local", "ray"], default="local")
     s.add_argument("--ray-address", default=None, help="ray.init address (e.g. auto)")
+    s.add_argument("--history", default=None, metavar="DB",
+                   help="add the finished night to this history database (docs/history.md)")
+    s.add_argument("--no-fail", action="store_true",
+                   help="exit 0 when scenarios did not pass (2 stays bad input): for set -e")
     _add_plugin(s)
     s.set_defaults(func=cmd_run)
 
@@ -101,8 +106,13 @@ def _run_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
 def _compare_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     s = sub.add_parser("compare", help="compare two run directories; exit 1 on a behaviour "
                                        "regression, 2 when nothing can be compared")
-    s.add_argument("base")
+    s.add_argument("base", nargs="?", default=None, help="BASE (not with --history)")
     s.add_argument("new")
+    s.add_argument("--history", default=None, metavar="DB",
+                   help="compare NEW with a night of this history database (no BASE)")
+    s.add_argument("--baseline", choices=["last", "last-pass"], default=None,
+                   help="with --history: the last night of NEW's catalog (default) or the "
+                        "last in which every run passed")
     s.add_argument("--out", default=None, help="where compare.csv/.html go (default NEW/compare)")
     s.add_argument("--tolerances", default=None, help="TOML file of per-metric tolerances")
     s.add_argument("--timing-gate", action="store_true",
@@ -119,6 +129,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("list", help="print the expanded scenario names of a catalog")
     s.add_argument("catalog")
     s.add_argument("--filter", default=None, help="glob on scenario names or families")
+    s.add_argument("-v", "--verbose", action="store_true",
+                   help="also each scenario's net and route (link edges marked)")
     _add_plugin(s)
     s.set_defaults(func=cmd_list)
     _run_parser(sub)
@@ -143,7 +155,20 @@ def build_parser() -> argparse.ArgumentParser:
     _add_plugin(s)
     s.set_defaults(func=cmd_controllers)
     add_paper_parser(sub)
+    add_history_parser(sub)
     return p
+
+
+def os_error_text(exc: OSError) -> str:
+    """``PATH: No space left on device (ENOSPC); nothing already written was lost``."""
+    import errno
+    import os
+
+    code = errno.errorcode.get(exc.errno or 0, "")
+    what = os.strerror(exc.errno) if exc.errno else str(exc)
+    where = exc.filename or "?"
+    return (f"{where}: {what}{f' ({code})' if code else ''}; files already written are "
+            "complete (every file is written atomically), this command stopped")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -155,6 +180,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (CatalogError, UsageError, FileNotFoundError) as exc:
         # catalog and input errors carry file/scenario/key in their message
         err(str(exc))
+        return EXIT_INPUT
+    except OSError as exc:  # a full disk, a read-only output: the environment, not a verdict
+        err(os_error_text(exc))
         return EXIT_INPUT
     except KeyboardInterrupt:
         err("interrupted")

@@ -4,17 +4,31 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
-from suite.cli.common import EXIT_INPUT, EXIT_OK, Output, UsageError, load_catalog_for, load_plugins
+from suite.cli.common import (
+    EXIT_INPUT,
+    EXIT_OK,
+    Output,
+    UsageError,
+    err,
+    load_catalog_for,
+    load_plugins,
+    route_text,
+    route_warnings,
+)
 
 
 def cmd_list(args: argparse.Namespace) -> int:
     load_plugins(args.plugin)
     _, scenarios = load_catalog_for(args.catalog, args.filter)
     out = Output()
+    verbose = bool(getattr(args, "verbose", False))
+    for line in route_warnings(scenarios):
+        err(line)
     for sc in scenarios:
-        out.line(sc.name)
+        out.line(f"{sc.name}  {route_text(sc)}" if verbose else sc.name)
         if out.closed:
             break
     return EXIT_OK
@@ -36,6 +50,13 @@ def cmd_report(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def default_compare_dir(new: Path) -> Path:
+    """Where compare writes compare.csv/.html without ``--out``: beside the new night's
+    folder (``<new>.compare``), so the night's own output stays as its run wrote it."""
+    new = new.resolve()
+    return new.parent / f"{new.name}.compare"
+
+
 def cmd_compare(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
@@ -48,16 +69,50 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise UsageError(f"--tolerances {args.tolerances}: {exc}") from exc
     if args.timing_gate:
         tol = replace(tol, timing_gate=True)
+    args.base = _compare_base(args)
     for side in (args.base, args.new):
         if not Path(side).is_dir():
             raise UsageError(f"{side}: no such directory")
-    out = Path(args.out) if args.out else Path(args.new) / "compare"
+    if Path(args.base).resolve() == Path(args.new).resolve():
+        raise UsageError(f"{args.base} and {args.new} are the same directory: a night "
+                         "compared with itself shows nothing (give the baseline night)")
+    out = Path(args.out) if args.out else default_compare_dir(Path(args.new))
     try:
         result = compare_runs(Path(args.base), Path(args.new), out, tol)
     except (NothingToCompare, DuplicateRuns) as exc:
         raise UsageError(str(exc)) from exc
+    except OSError as exc:  # a read-only or full output: exit 2, not 1 ("regression")
+        raise UsageError(f"{out}: cannot write the comparison ({exc.strerror or exc}); "
+                         "give a writable --out") from exc
     Output().line(as_json(result) if args.json else result.summary_text())
     return int(result.exit_code)
+
+
+def _compare_base(args: argparse.Namespace) -> str:
+    """BASE as given, or with ``--history DB`` the output directory of the baseline night
+    the database names (docs/history.md); input errors are UsageErrors (exit 2)."""
+    history, baseline = getattr(args, "history", None), getattr(args, "baseline", None)
+    if history is None:
+        if baseline is not None:
+            raise UsageError("--baseline needs --history DB")
+        if args.base is None:
+            raise UsageError("compare: expected BASE NEW, or --history DB NEW")
+        return str(args.base)
+    if args.base is not None:
+        raise UsageError("compare --history DB NEW: give NEW only (the database names BASE)")
+    from reports.history import HistoryError, baseline_night
+
+    try:
+        found = baseline_night(Path(history), Path(args.new), baseline or "last")
+    except HistoryError as exc:
+        raise UsageError(str(exc)) from exc
+    line = (f"baseline: night {found.night.night_id} ({found.mode}, revision "
+            f"{found.night.short_revision}) from {found.out_dir}")
+    if args.json:  # stdout is the JSON alone
+        print(line, file=sys.stderr)
+    else:
+        Output().line(line)
+    return str(found.out_dir)
 
 
 def cmd_view(args: argparse.Namespace) -> int:

@@ -108,3 +108,27 @@ def load_catalog_for(catalog: str, pattern: str | None) -> tuple[Any, list[Any]]
         if not scenarios:
             raise UsageError(f"{catalog}: --filter {pattern!r} matches no scenario")
     return cat, scenarios
+
+
+def route_warnings(scenarios: list[Any]) -> list[str]:
+    """One line per scenario whose route uses link edges (ramps, exits: an OpenStreetMap
+    ``*_link`` type): positions along it then mean another place than on the through
+    carriageway the default route follows (suite.road.network)."""
+    from suite.road.network import RoadNetwork
+
+    lines = []
+    for sc in scenarios:
+        links = RoadNetwork.load(sc.net_path).link_edges(sc.route)
+        if links:
+            lines.append(f"warning: scenario {sc.name}: its route uses link edges (ramps, "
+                         f"exits) {links}; the default route keeps to the through carriageway")
+    return lines
+
+
+def route_text(scenario: Any) -> str:
+    """``net: route e0 → e1 → e2 (1234 m)`` with link edges marked ``[link]``."""
+    from suite.road.network import RoadNetwork
+
+    net = RoadNetwork.load(scenario.net_path)
+    edges = " → ".join(f"{e} [link]" if net.is_link(e) else e for e in scenario.route)
+    return f"{scenario.net_path.name}: route {edges} ({net.route_length_m(scenario.route):.0f} m)"

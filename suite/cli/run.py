@@ -6,7 +6,9 @@ build the jobs (each with its wall-clock budget, :mod:`suite.exec.budget`, and i
 scenario's content hash), make the executor, prepare the directory (``--overwrite``
 empties it, ``--resume`` keeps what finished), write the manifest with the provenance,
 run the jobs with progress, write the reports, finish the manifest, print the short
-summary. Exit 0 when every scenario of the manifest passed, 1 otherwise.
+summary, add the night to ``--history DB`` if asked. Exit 0 when every scenario of
+the manifest passed (or with ``--no-fail``), 1 otherwise; 2 when the night could not
+be added to the history (the output is complete).
 
 SIGINT and SIGTERM stop the run in order (:mod:`suite.exec.signals`): nothing more
 starts, the running scenarios are ended, the reports are written for what finished,
@@ -27,6 +29,7 @@ from typing import Any
 
 from suite.cli.common import (
     EXIT_FAIL,
+    EXIT_INPUT,
     EXIT_OK,
     Output,
     Plugins,
@@ -34,6 +37,7 @@ from suite.cli.common import (
     err,
     load_catalog_for,
     load_plugins,
+    route_warnings,
 )
 
 WARMUP_NOTE = ("starting {n} worker(s): importing modules and loading numba kernels "
@@ -43,13 +47,18 @@ WARMUP_NOTE = ("starting {n} worker(s): importing modules and loading numba kern
 def build_jobs(scenarios: list[Any], out: Path, catalog_name: str, no_log: bool,
                plugins: Plugins, timeout_s: float | None = None) -> list[Any]:
     """One job per scenario: its budget (``--timeout``, else the catalog's, else the
-    default from its duration) and its content hash (each network file read once)."""
+    default from its duration), its content hash (each network file read once) and the
+    hashes of the code and of a plug-in controller (:mod:`suite.run.code_identity`)."""
     from suite.exec.budget import run_budget_s
     from suite.exec.executors import RunJob
+    from suite.run.code_identity import controller_sha256, hwyeval_code_sha256
     from suite.run.info import file_sha256, scenario_content_sha256
     from suite.run.options import RunOptions
 
     net_hashes: dict[Path, str] = {}
+    code = hwyeval_code_sha256()
+    controllers = {name: controller_sha256(name)
+                   for name in sorted({sc.controller.name for sc in scenarios})}
     jobs = []
     for sc in scenarios:
         if sc.net_path not in net_hashes:
@@ -60,7 +69,9 @@ def build_jobs(scenarios: list[Any], out: Path, catalog_name: str, no_log: bool,
                                  f"{sc.name!r} ({exc})") from exc
         budget = run_budget_s(sc.duration_s, sc.timeout_s, timeout_s)
         options = RunOptions(write_rrd=not no_log, catalog_name=catalog_name, timeout_s=budget,
-                             content_sha256=scenario_content_sha256(sc, net_hashes[sc.net_path]))
+                             content_sha256=scenario_content_sha256(sc, net_hashes[sc.net_path]),
+                             code_sha256=code,
+                             controller_sha256=controllers[sc.controller.name])
         jobs.append(RunJob(sc, out.resolve(), options, budget, plugins.modules))
     return jobs
 
@@ -111,6 +122,10 @@ def resume_command(args: argparse.Namespace) -> str:
         parts += ["--ray-address", args.ray_address]
     for plugin in args.plugin or []:
         parts += ["--plugin", plugin]
+    if getattr(args, "history", None):
+        parts += ["--history", args.history]
+    if getattr(args, "no_fail", False):
+        parts.append("--no-fail")
     return shlex.join(parts)
 
 
@@ -175,6 +190,24 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
          warm: _EarlyWarmUp) -> int:
+    """The run under the output directory's lock (suite.exec.out_lock): a second command
+    into the same --out is refused (exit 2) before it writes anything."""
+    from suite.exec.out_lock import OutDirBusy, out_dir_lock
+
+    out = Path(args.out)
+    try:
+        Path(os.path.abspath(out)).parent.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return _locked_run(args, out_text, plugins, warm)  # check_out_dir says why
+    try:
+        with out_dir_lock(out):
+            return _locked_run(args, out_text, plugins, warm)
+    except OutDirBusy as exc:
+        raise UsageError(str(exc)) from exc
+
+
+def _locked_run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
+                warm: _EarlyWarmUp) -> int:
     from reports.manifest import write_manifest
     from suite.cli.progress import RunProgress, short_summary
     from suite.exec.outdir import (
@@ -187,6 +220,8 @@ def _run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
     from suite.exec.signals import stop_on_signals
 
     _, scenarios = load_catalog_for(args.catalog, args.filter)
+    for line in route_warnings(scenarios):
+        err(line)
     out = Path(args.out)
     try:
         plan = check_out_dir(out, _mode(args), [sc.name for sc in scenarios])
@@ -205,8 +240,11 @@ def _run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
                       f"{len(jobs)} scenario(s) of {args.catalog} → {out} with {workers} "
                       f"{args.executor} worker(s)")
         if plan.mode == "resume":
-            out_text.line(f"resume: {len(todo.kept)} of {len(jobs)} already finished (same "
-                          f"scenario content and hwyeval version), {len(todo.to_run)} to run")
+            out_text.line(f"resume: {len(todo.kept)} of {len(jobs)} kept (finished with the "
+                          "same scenario, hwyeval sources, controller source and complete "
+                          f"files), {len(todo.to_run)} to run:")
+            for line in todo.why:
+                out_text.line(f"  {line}")
         if args.executor == "local" and todo.to_run:
             out_text.line(WARMUP_NOTE.format(n=min(workers, len(todo.to_run))))
         t0 = time.perf_counter()
@@ -227,7 +265,18 @@ def _run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
     write_manifest(out, manifest.finish())
     for line in short_summary(records, time.perf_counter() - t0):
         out_text.line(line)
+    if paths is not None:
+        out_text.line(f"report:  {paths.report_html}\nresults: {paths.results_csv}")
+    if getattr(args, "history", None):
+        from suite.cli.history import add_run_to_history
+
+        if not add_run_to_history(args.history, out, out_text):
+            return EXIT_INPUT
     if paths is None:
         return EXIT_FAIL
-    out_text.line(f"report:  {paths.report_html}\nresults: {paths.results_csv}")
-    return EXIT_OK if all(r.status == "pass" for r in records) else EXIT_FAIL
+    if all(r.status == "pass" for r in records):
+        return EXIT_OK
+    if getattr(args, "no_fail", False):
+        out_text.line("--no-fail: exit 0 although some scenario did not pass")
+        return EXIT_OK
+    return EXIT_FAIL

@@ -27,7 +27,7 @@ import signal
 import time
 import traceback
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -59,6 +59,12 @@ class _Running:
     started: float  # time.monotonic() at start [s]
 
 
+# Exit codes of a scenario process that was stopped, not broken: killed by a stop
+# signal, or 255 (multiprocessing's code when the forkserver that reports the child's
+# status is gone).
+STOPPED_FROM_OUTSIDE = (-signal.SIGTERM, -signal.SIGINT, -signal.SIGHUP, 255)
+
+
 class LocalExecutor:
     """Scenario processes on this machine, at most ``jobs`` at once (module docstring)."""
 
@@ -77,7 +83,9 @@ class LocalExecutor:
         running: dict[Any, _Running] = {}
         results: list[RunRecord] = []
 
-        def done(record: RunRecord) -> None:
+        def done(record: RunRecord | None) -> None:
+            if record is None:  # stopped from outside before it finished: not a result
+                return
             results.append(record)
             if on_done is not None:
                 on_done(record)
@@ -140,8 +148,9 @@ class LocalExecutor:
                                  + traceback.format_exc())
         return _Running(job, proc, time.monotonic())
 
-    def _finish(self, item: _Running, killed: str | None) -> RunRecord:
-        """The record of a process that ended (or was killed: ``killed`` says why)."""
+    def _finish(self, item: _Running, killed: str | None) -> RunRecord | None:
+        """The record of a process that ended (or was killed: ``killed`` says why); None
+        for one stopped from outside before it published a record (:func:`_published`)."""
         job, proc = item.job, item.proc
         try:
             proc.join(timeout=KILL_GRACE_S)
@@ -154,17 +163,26 @@ class LocalExecutor:
                                     + traceback.format_exc())
 
     @staticmethod
-    def _published(job: RunJob, exitcode: int | None) -> RunRecord:
+    def _published(job: RunJob, exitcode: int | None) -> RunRecord | None:
+        """The run's published record; None when the process was stopped from outside
+        (SIGTERM, SIGINT or SIGHUP, as a CI cancel sends to the whole process group; or
+        exit code 255, the forkserver gone with the status unknown) before it published
+        one: the run did not end, ``--resume`` runs it again. A record published before
+        such an end is kept whatever the exit code; any other end without a valid
+        record is the run's error."""
         try:
             record = read_result(job)
         except (FileNotFoundError, RecordError) as exc:
+            if exitcode in STOPPED_FROM_OUTSIDE:
+                return None
             return write_failure(job, "error", f"scenario process exited with code "
                                  f"{exitcode} without a valid record ({exc})")
-        if exitcode != 0 and record.outcome.end == "ok":
+        if exitcode not in (0, *STOPPED_FROM_OUTSIDE) and record.outcome.end == "ok":
             return write_failure(job, "error", f"scenario process exited with code {exitcode}")
         return record
 
-    def _kill_overdue(self, running: dict[Any, _Running], done: OnDone) -> None:
+    def _kill_overdue(self, running: dict[Any, _Running],
+                      done: Callable[[RunRecord | None], None]) -> None:
         """The backstop for a hung process: the runner stops itself at its budget."""
         now = time.monotonic()
         for sentinel, item in list(running.items()):
@@ -176,7 +194,8 @@ class LocalExecutor:
             done(self._finish(item, f"killed after {now - item.started:.1f} s (wall-clock "
                                     f"budget {budget:g} s)"))
 
-    def _abandon(self, items: list[_Running], done: OnDone) -> None:
+    def _abandon(self, items: list[_Running],
+                 done: Callable[[RunRecord | None], None]) -> None:
         """End the running processes of a stopped run; a run one of them published
         before it ended is kept, the others leave nothing behind."""
         terminate_workers([item.proc for item in items])

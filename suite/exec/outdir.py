@@ -10,8 +10,10 @@ Rules (checked by :func:`check_out_dir` before anything is written; a violation 
   ``manifest.json``, or nothing but run directories and report files): a mistyped
   ``--out $HOME`` is refused, not wiped.
 * ``--resume`` keeps every run finished with a verdict (pass or fail) whose scenario has
-  the same content hash (:func:`suite.run.info.scenario_content_sha256`) and whose
-  record was written by the same hwyeval version, and runs the others; their old
+  the same content hash (:func:`suite.run.info.scenario_content_sha256`), whose record
+  was written by the same hwyeval version and sources and the same plug-in controller
+  source (:mod:`suite.run.code_identity`), and whose files are all there with the
+  checksums run.json lists, and runs the others (the terminal says which and why); their old
   directories (an error, a timeout, another scenario content, a symbolic link) are
   removed first. A run directory of a scenario that is not among those to run is
   refused: the reports must cover exactly the runs of this manifest.
@@ -26,7 +28,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from reports.record import RunRecord, iter_run_dirs, load_run
+from reports.record import RunRecord, incomplete_files, iter_run_dirs, load_run
 from reports.record.run import (
     SERIES,
     STAGING_PREFIX,
@@ -37,6 +39,7 @@ from reports.record.run import (
 )
 from suite import __version__
 from suite.exec.jobs import RunJob
+from suite.run.code_identity import CODE_KEY, CONTROLLER_KEY
 from suite.run.info import CONTENT_KEY
 
 __all__ = ["MODES", "REPORT_DIRS", "REPORT_FILES", "OutPlan", "OutputDirError", "ResumePlan",
@@ -163,32 +166,63 @@ def prepare_out_dir(plan: OutPlan) -> None:
 @dataclass(frozen=True)
 class ResumePlan:
     """``kept``: the records of runs already finished (not run again); ``to_run``: the
-    jobs to run; ``removed``: old run directories removed because they did not count."""
+    jobs to run; ``removed``: old run directories removed because they did not count;
+    ``why``: for every job, why it was kept or why it runs again (one line each, in job
+    order: what the terminal shows)."""
 
     kept: tuple[RunRecord, ...]
     to_run: tuple[RunJob, ...]
     removed: tuple[Path, ...] = ()
+    why: tuple[str, ...] = ()
 
 
-def finished_record(job: RunJob) -> RunRecord | None:
-    """The job's existing record if ``--resume`` may keep it (module doc), else None."""
+def finished_record(job: RunJob) -> tuple[RunRecord | None, str]:
+    """(the job's existing record if ``--resume`` may keep it, else None; why): kept
+    only when it finished with a verdict, for the same scenario content, with the same
+    hwyeval version and sources and the same plug-in controller source
+    (:mod:`suite.run.code_identity`), and every file run.json lists is there with its
+    checksum."""
     run_dir = job.run_dir
-    if run_dir.is_symlink() or not run_dir.is_dir():
-        return None
+    if run_dir.is_symlink():
+        return None, "a symbolic link, not a run directory"
+    if not run_dir.is_dir():
+        return None, "not run yet"
     try:
         record = load_run(run_dir, trace=False, neighbours=False, arrays=False, series=False)
-    except Exception:  # noqa: BLE001 - any unreadable record is run again
-        return None
-    info = record.info
-    if (record.status not in FINISHED or info.scenario != job.name
-            or info.hwyeval_version != __version__
-            or not job.options.content_sha256
-            or info.scenario_spec.get(CONTENT_KEY) != job.options.content_sha256):
-        return None
+    except Exception as exc:  # noqa: BLE001 - any unreadable record is run again
+        return None, f"unreadable ({type(exc).__name__})"
+    problem = _stale(record, job)
+    if problem:
+        return None, problem
     if record.outcome.steps > 0 and not ((run_dir / TRACE).is_file()
                                          and (run_dir / SERIES).is_file()):
-        return None
-    return record
+        return None, f"incomplete ({TRACE} or {SERIES} missing)"
+    damaged = incomplete_files(run_dir, contents=True)
+    if damaged:
+        return None, "incomplete (" + "; ".join(damaged) + ")"
+    return record, (f"kept: {record.status}, same scenario content, hwyeval sources "
+                    f"{job.options.code_sha256[:10]}"
+                    + (f", controller source {job.options.controller_sha256[:10]}"
+                       if job.options.controller_sha256 else "")
+                    + ", files complete")
+
+
+def _stale(record: RunRecord, job: RunJob) -> str:
+    """Why ``record`` is not the result ``job`` would give ('' when it is)."""
+    info, spec = record.info, record.info.scenario_spec
+    if record.status not in FINISHED:
+        return f"ended {record.status}"
+    if info.scenario != job.name:
+        return f"holds scenario {info.scenario!r}"
+    if info.hwyeval_version != __version__:
+        return f"made by hwyeval {info.hwyeval_version or '?'}"
+    if not job.options.content_sha256 or spec.get(CONTENT_KEY) != job.options.content_sha256:
+        return "the scenario changed (content hash)"
+    if spec.get(CODE_KEY, "") != job.options.code_sha256:
+        return "hwyeval's code changed (source hash)"
+    if spec.get(CONTROLLER_KEY, "") != job.options.controller_sha256:
+        return f"controller {info.controller}'s source changed"
+    return ""
 
 
 def resume_plan(jobs: Sequence[RunJob]) -> ResumePlan:
@@ -197,8 +231,10 @@ def resume_plan(jobs: Sequence[RunJob]) -> ResumePlan:
     kept: list[RunRecord] = []
     to_run: list[RunJob] = []
     removed: list[Path] = []
+    why: list[str] = []
     for job in jobs:
-        record = finished_record(job)
+        record, reason = finished_record(job)
+        why.append(f"{job.name}: {reason if record is not None else 'runs again: ' + reason}")
         if record is not None:
             kept.append(record)
             continue
@@ -206,4 +242,4 @@ def resume_plan(jobs: Sequence[RunJob]) -> ResumePlan:
         if job.run_dir.is_symlink() or job.run_dir.exists():
             remove_path(job.run_dir)
             removed.append(job.run_dir)
-    return ResumePlan(tuple(kept), tuple(to_run), tuple(removed))
+    return ResumePlan(tuple(kept), tuple(to_run), tuple(removed), tuple(why))

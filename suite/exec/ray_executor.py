@@ -27,9 +27,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from reports.record import RunRecord
+from reports.record import RUN_JSON, RunRecord
 from reports.record.run import discard_staging, publish_run_dir, remove_path, staging_dir
-from suite.exec.jobs import OnDone, RunJob, read_result, run_job, write_failure
+from suite.exec.jobs import OnDone, RunJob, read_result, write_failure
+from suite.exec.local import LocalExecutor
 from suite.exec.signals import POLL_S, StopRequest
 
 __all__ = ["MAX_NET_BYTES", "RayExecutor", "ray_payload"]
@@ -68,9 +69,15 @@ def _ray_task(job: RunJob, net_bytes: bytes) -> bytes:
         scenario = dataclasses.replace(job.scenario, net_path=net)
         local = RunJob(scenario, tmp_path / "out", job.options, job.timeout_s, job.plugins)
         try:
-            run_job(local)
+            # In a child process of this worker, as the local executor runs every
+            # scenario: its wall-clock backstop kills a run hung beyond its budget (a
+            # step stuck in C holds the GIL: no thread in this process could) and
+            # records it as a timeout, and a crash of the child is that run's error.
+            LocalExecutor(jobs=1, start_method="fork").run([local])
         except Exception:  # noqa: BLE001
             write_failure(local, "error", traceback.format_exc())
+        if not (local.run_dir / RUN_JSON).is_file():
+            write_failure(local, "error", "the scenario process left no record")
         buf = io.BytesIO()
         with tarfile.open(fileobj=buf, mode="w:gz") as tar:
             tar.add(local.run_dir, arcname=scenario.name)

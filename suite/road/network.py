@@ -18,11 +18,14 @@ Conventions
 * **Hard shoulder.** A lane is a shoulder when it does not allow the vClass
   ``passenger`` but allows ``emergency`` or ``authority``.
 * **Default route.** The longest path (by route length, junctions included) through
-  the graph of non-internal edges that allow ``passenger`` on at least one lane,
-  following lane connections and ignoring turnarounds (``dir="t"``). The graph is
-  assumed to be a DAG; cycles are broken by dropping DFS back edges (edges visited in
-  sorted id order, so the result is deterministic). Ties go to the lexicographically
-  smallest id sequence.
+  the graph of non-internal edges that allow ``passenger`` on at least one lane and are
+  not *link* edges (an OpenStreetMap type ending in ``_link``: ramps, exits, slip
+  roads), following lane connections and ignoring turnarounds (``dir="t"``): the through
+  carriageway. Link edges are used only where no edge is left without them. The graph
+  is assumed to be a DAG; cycles are broken by dropping DFS back edges (edges visited
+  in sorted id order, so the result is deterministic). Ties go to the lexicographically
+  smallest id sequence. :meth:`link_edges` names the link edges of a route (the catalog
+  warns about a route that uses them).
 """
 
 from __future__ import annotations
@@ -273,11 +276,24 @@ class RoadNetwork:
             self._default_route = self._longest_path()
         return self._default_route
 
+    def is_link(self, edge_id: str) -> bool:
+        """Whether the edge is a link (ramp, exit, slip road): its type ends in ``_link``
+        (``highway.motorway_link``, ``highway.trunk_link``, ...)."""
+        edge_type = str(self._edge(edge_id).getType() or "")
+        return edge_type.endswith("_link")
+
+    def link_edges(self, route: Sequence[str]) -> list[str]:
+        """The link edges of ``route``, in route order (:meth:`is_link`)."""
+        return [eid for eid in route if eid in self._edges and self.is_link(eid)]
+
     def _longest_path(self) -> tuple[str, ...]:
         usable = {eid for eid, e in self._edges.items()
                   if any(lane.allows("passenger") for lane in e.getLanes())}
         if not usable:
             usable = set(self._edges)
+        through = {eid for eid in usable if not self.is_link(eid)}
+        if through:  # the through carriageway: ramps only where nothing else is left
+            usable = through
         succ = {eid: [s for s in self._successors(eid) if s in usable] for eid in sorted(usable)}
         # Iterative DFS: drop back edges (cycle guard) and get a post-order.
         state: dict[str, int] = {}

@@ -53,13 +53,17 @@ def ego_box(vehicle: VehicleParams) -> EgoBox:
 
 def scenario_info(scenario: Scenario, catalog_name: str, vehicle: VehicleParams,
                   controller_params: Mapping[str, Any] | None = None,
-                  content_sha256: str = "") -> RunInfo:
+                  content_sha256: str = "", identity: Mapping[str, str] | None = None
+                  ) -> RunInfo:
     """Everything about the run known before it starts (controller parameters once
     built); ``content_sha256`` (:func:`scenario_content_sha256`, '' if unknown) goes
-    into ``scenario_spec`` under :data:`CONTENT_KEY`."""
+    into ``scenario_spec`` under :data:`CONTENT_KEY`, and each non-empty ``identity``
+    hash (:mod:`suite.run.code_identity`: the code's, the plug-in controller's) under
+    its key."""
     spec = scenario.as_dict()
     if content_sha256:
         spec[CONTENT_KEY] = content_sha256
+    spec.update({k: v for k, v in (identity or {}).items() if v})
     return RunInfo(
         scenario=scenario.name, family=scenario.family, controller=scenario.controller.name,
         catalog=str(scenario.catalog_path), catalog_name=catalog_name, seed=int(scenario.seed),

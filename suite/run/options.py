@@ -13,13 +13,17 @@ __all__ = ["RunOptions"]
 @dataclass(frozen=True)
 class RunOptions:
     """How to run: Rerun log on/off, the catalog's name (for logs), the wall-clock budget
-    ``timeout_s`` [s] (None: none), and the scenario's content hash
-    (:func:`suite.run.info.scenario_content_sha256`, '' if not computed) to record."""
+    ``timeout_s`` [s] (None: none), and what produced the result, to record for
+    ``--resume``: the scenario's content hash
+    (:func:`suite.run.info.scenario_content_sha256`), the hash of hwyeval's sources and
+    of a plug-in controller's (:mod:`suite.run.code_identity`); '' where not computed."""
 
     write_rrd: bool = True
     catalog_name: str = ""
     timeout_s: float | None = None
     content_sha256: str = ""
+    code_sha256: str = ""
+    controller_sha256: str = ""
 
     def __post_init__(self) -> None:
         if not isinstance(self.write_rrd, bool):

@@ -100,6 +100,13 @@ class _Run:
     n_steps: int
 
 
+def identity_of(options: RunOptions) -> dict[str, str]:
+    """The code hashes of ``options`` by their run.json key (:mod:`suite.run.code_identity`)."""
+    from suite.run.code_identity import CODE_KEY, CONTROLLER_KEY
+
+    return {CODE_KEY: options.code_sha256, CONTROLLER_KEY: options.controller_sha256}
+
+
 def initial_state(path: FrenetPath, front_pos_m: float, speed_mps: float,
                   vehicle: VehicleParams, lateral_offset_m: float = 0.0) -> np.ndarray:
     """(6,) plant state with the front bumper at ``front_pos_m`` along the reference path
@@ -181,7 +188,7 @@ def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: R
     controller: Controller = SumoDrivesEgo(driver) if isinstance(driver, SumoDriverModel) \
         else driver
     info = scenario_info(scenario, options.catalog_name, vehicle, controller.parameters(),
-                         options.content_sha256)
+                         options.content_sha256, identity_of(options))
     ref = _reference(network, scenario)
     reference = ref.points_xy_m
     start_edge, _ = network.locate(route, scenario.ego.pos_m)
@@ -277,7 +284,8 @@ def _record(scenario: Scenario, options: RunOptions, vehicle: VehicleParams, run
     else:
         trace, neighbours, arrays = Trace.empty(), NeighbourColumns.allocate(0), ControllerArrays()
         info = scenario_info(scenario, options.catalog_name, vehicle,
-                             content_sha256=options.content_sha256)
+                             content_sha256=options.content_sha256,
+                             identity=identity_of(options))
         road = RoadRecord()
     trace.safety.ssm_ttc_s[:] = summary.ssm_ttc_at(trace.t_s)
     outcome = RunOutcome(
