@@ -373,13 +373,15 @@ class LaneBehaviour:
                         ) -> list[_Want]:
         """Make room: traffic merging into the ego's lane near it (from a lane that
         ends beside it, or entering from an on-ramp while nothing but shoulders and
-        ending lanes lies between the ego's lane and the ramp), and the lane on the far
-        side as fast and continuing: move there, not urgent (the gap rules and the hold
-        time apply), and return once they have merged (:meth:`_merging_into`)."""
+        ending lanes lies between the ego's lane and the ramp) that comes within the
+        ego's gap rules in the next 3 s (:meth:`_merge_conflict`), and the lane on the
+        far side as fast and continuing: move there, not urgent (the gap rules and the
+        hold time apply), and return once they have merged (:meth:`_merging_into`). A
+        merger that will be well ahead or behind is no reason to leave the lane."""
         merging = [(j, int(math.copysign(1, float(sc.fn.y_m[j]) - sc.offset_m(c))))
                    for j in self._merging_into(sc, c)]
-        if not merging:
-            return []
+        if not merging or not self._merge_conflict(sc, c):
+            return []  # nobody merges within the gap rules of the ego: no need to move
         sides = {side for _, side in merging}
         if len(sides) != 1:
             return []  # merging from both sides: nowhere to make room
