@@ -237,14 +237,21 @@ def test_single_controller_dirs_match_by_scenario(tmp_path: Path) -> None:
     assert result.exit_code == 0
 
 
-def test_compare_reads_only_the_stored_verdicts(base: Path, tmp_path: Path) -> None:
+def test_compare_reads_the_stored_verdicts_of_complete_runs(base: Path, tmp_path: Path
+                                                             ) -> None:
     new = _copy(base, tmp_path)
-    # per-step files gone: nothing to re-evaluate from, the verdicts still compare
+    # per-step files gone: the runs are incomplete (run.json lists them), so none of
+    # them counts as passed any more, whatever its stored verdict says
     for run_dir in new.iterdir():
         for part in run_dir.iterdir() if run_dir.is_dir() else ():
             if part.name != RUN_JSON:
                 part.unlink()
-    assert compare_runs(base, new, tmp_path / "cmp").exit_code == 0
+    gone = compare_runs(base, new, tmp_path / "cmp")
+    assert gone.exit_code == 1
+    assert all("incomplete run directory" in r.note for r in gone.of_kind("new_failure"))
+    # the verdicts alone decide: the same per-step files, nothing is re-evaluated
+    new = _copy(base, tmp_path, "again")
+    assert compare_runs(base, new, tmp_path / "cmp1").exit_code == 0
     # a run directory whose run.json is unreadable counts as an error run
     (new / "cruise_straight__ctrl_a" / RUN_JSON).write_text("{")
     result = compare_runs(base, new, tmp_path / "cmp2")

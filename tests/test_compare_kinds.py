@@ -167,3 +167,15 @@ def test_rows_link_to_both_runs_pages(base: Path, tmp_path: Path) -> None:
     assert result.regressions
     page = f"report-runs/{RUN}.html"
     assert f"base/{page}" in html and f"new/{page}" in html
+
+
+def test_a_misspelt_metric_in_the_tolerances_exits_2(base: Path, tmp_path: Path) -> None:
+    new = _night(base, tmp_path, _same)
+    typo = tmp_path / "tol.toml"
+    typo.write_text("[metrics.min_gap_mm]\nabs = 0.1\n")
+    proc = _cli(str(base), str(new), "--tolerances", str(typo))
+    assert proc.returncode == 2
+    assert "min_gap_mm" in proc.stderr and "min_gap_m" in proc.stderr.replace("min_gap_mm", "")
+    good = tmp_path / "good.toml"
+    good.write_text("[metrics.min_gap_m]\nabs = 0.1\n[timing]\nstep_ms_p99 = 2.0\n")
+    assert _cli(str(base), str(new), "--tolerances", str(good)).returncode == 0

@@ -46,8 +46,25 @@ def test_the_failures_list_is_the_first_thing_under_the_header(driver: Any,
     header = driver.find_element(By.TAG_NAME, "header")
     section = driver.find_element(By.ID, "failures")
     assert abs(section.location["y"] - (header.location["y"] + header.size["height"])) < 40
-    rows = section.find_elements(By.CSS_SELECTOR, "tbody tr")
+    rows = section.find_elements(By.CSS_SELECTOR, "table.failures tbody tr")
     assert len(rows) == 5  # 12 runs, 7 passed
+    # the triage above it: the failures grouped, the counts add up, largest group first
+    groups = section.find_elements(By.CSS_SELECTOR, "table.triage tbody tr")
+    counts = [int(g.find_elements(By.TAG_NAME, "td")[1].text) for g in groups]
+    assert sum(counts) == 5 and counts == sorted(counts, reverse=True)
+    # a click on a column head sorts the table by it
+    head = section.find_elements(By.CSS_SELECTOR, "table.failures thead th")[1]
+    head.click()
+    names = [r.find_elements(By.TAG_NAME, "td")[1].text for r in
+             section.find_elements(By.CSS_SELECTOR, "table.failures tbody tr")]
+    assert names == sorted(names, key=str.lower)
+    head.click()  # and back, reversed
+    names_back = [r.find_elements(By.TAG_NAME, "td")[1].text for r in
+                  section.find_elements(By.CSS_SELECTOR, "table.failures tbody tr")]
+    assert names_back == names[::-1]
+    driver.refresh()
+    section = driver.find_element(By.ID, "failures")
+    rows = section.find_elements(By.CSS_SELECTOR, "table.failures tbody tr")
     # errors first, each row's reason visible in the first screen
     assert rows[0].get_attribute("class") == "error"
     assert "RuntimeError: solver diverged" in section.text

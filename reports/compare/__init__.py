@@ -44,11 +44,15 @@ from reports.provenance import Difference, differences
 from reports.tables import RunEntry, collect_runs
 
 __all__ = ["CompareResult", "CompareRow", "DuplicateRuns", "MetricTolerance", "NothingToCompare",
-           "TimingLine", "Tolerances", "compare_evaluated", "compare_runs"]
+           "TimingLine", "Tolerances", "UnknownTolerance", "compare_evaluated", "compare_runs"]
 
 
 class NothingToCompare(ValueError):
     """A side holds no run, or no run matches: the comparison means nothing (exit 2)."""
+
+
+class UnknownTolerance(ValueError):
+    """The tolerances name a metric no compared run has (a typo; exit 2)."""
 
 
 @dataclass
@@ -169,6 +173,10 @@ def compare_runs(base_dir: str | Path, new_dir: str | Path, out_dir: str | Path 
         if not runs:
             raise NothingToCompare(f"{side} {d} holds no run directory (DIR/<scenario>/"
                                    "run.json): nothing to compare against")
+    unknown = tol.unknown_names({m.name for r in (*base, *new) for m in r.metrics})
+    if unknown:
+        raise UnknownTolerance("the tolerances set metrics that no run of either side has: "
+                               + ", ".join(unknown))
     rows, matched, pairs = compare_evaluated(base, new, tol)
     if matched == 0:
         raise NothingToCompare(f"no run of {new_dir} matches a run of {base_dir} (by scenario "

@@ -127,10 +127,13 @@ class PairChange:
 def pair_change(b: RunEntry, n: RunEntry) -> PairChange:
     """The set-up differences of a matched pair (:class:`PairChange`) from the stored
     verdicts' resolved criteria and the runs' content hashes."""
-    cb = b.verdict.criteria if b.verdict is not None else {}
-    cn = n.verdict.criteria if n.verdict is not None else {}
-    changed = tuple((name, cb.get(name), cn.get(name)) for name in sorted(set(cb) | set(cn))
-                    if _limit(cb.get(name)) != _limit(cn.get(name)))
+    if b.verdict is None or n.verdict is None:  # an unreadable or unjudged run: unknown,
+        changed: tuple[tuple[str, float | None, float | None], ...] = ()  # not changed
+    else:
+        cb, cn = b.verdict.criteria, n.verdict.criteria
+        changed = tuple((name, cb.get(name), cn.get(name))
+                        for name in sorted(set(cb) | set(cn))
+                        if _limit(cb.get(name)) != _limit(cn.get(name)))
     hb = b.info.scenario_spec.get(CONTENT_KEY) if b.info is not None else None
     hn = n.info.scenario_spec.get(CONTENT_KEY) if n.info is not None else None
     return PairChange(changed, bool(hb and hn and hb != hn))

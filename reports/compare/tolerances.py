@@ -133,6 +133,9 @@ class Tolerances:
     missing_is_regression: bool = True
     timing_gate: bool = False
     gate_kinds: tuple[str, ...] = GATE_KINDS
+    # the metric names a tolerances file set ([metrics.NAME], [timing] NAME): each must
+    # be a metric of the runs compared (a typo would silently change nothing)
+    named: tuple[str, ...] = ()
 
     def tolerance(self, metric: str) -> MetricTolerance:
         return self.metrics.get(metric, DEFAULT_TOLERANCE)
@@ -157,7 +160,22 @@ class Tolerances:
                    missing_is_regression=_flag(data, "missing_is_regression",
                                                base.missing_is_regression),
                    timing_gate=_flag(data, "timing_gate", base.timing_gate),
-                   gate_kinds=_kinds(data.get("gate_kinds", base.gate_kinds)))
+                   gate_kinds=_kinds(data.get("gate_kinds", base.gate_kinds)),
+                   named=tuple(sorted({*base.named, *(data.get("metrics") or {}),
+                                       *(data.get("timing") or {})})))
+
+    def unknown_names(self, metrics: set[str]) -> list[str]:
+        """The names this file set that are none of ``metrics``, each with the closest
+        known name when there is one (``no_such_metric (did you mean min_gap_m?)``)."""
+        import difflib
+
+        out = []
+        for name in self.named:
+            if name in metrics:
+                continue
+            close = difflib.get_close_matches(name, sorted(metrics), n=1)
+            out.append(name + (f" (did you mean {close[0]}?)" if close else ""))
+        return out
 
     @classmethod
     def from_toml(cls, path: str | Path) -> Tolerances:

@@ -279,15 +279,35 @@ def _reference_lines(p: _Plot, hlines: Sequence[Line], vlines: Sequence[Line], x
     return out
 
 
-def _legend(p: _Plot, series: Sequence[Series], inside: bool) -> list[str]:
+LEGEND_CHAR_PX = 6.5  # width of a legend character at 11 px bold (for fitting labels)
+
+
+def _fitted(label: str, room_px: float) -> str:
+    """``label`` cut with an ellipsis to fit ``room_px`` (the full text is the title)."""
+    fits = max(int(room_px / LEGEND_CHAR_PX), 4)
+    return label if len(label) <= fits else label[: fits - 1] + "…"
+
+
+def _legend(p: _Plot, series: Sequence[Series], inside: bool | str) -> list[str]:
+    """The legend: along the top edge; ``True`` stacked in the plot's lower-right
+    corner; ``"upper-left"`` stacked in its upper-left corner (where a CDF has no
+    curve: small times, fractions near 1). Inside, labels are cut to the plot's width."""
     out = []
     lx = p.width - p.mr
+    if inside == "upper-left":
+        for i, s in enumerate(series):
+            ly = p.mt + 14 + 13 * i
+            out.append(f'<text x="{p.ml + 6}" y="{ly}" class="legend" fill="{s.colour}">'
+                       f"<title>{esc(s.label)}</title>{esc(_fitted(s.label, p.pw - 12))}"
+                       "</text>")
+        return out
     for i, s in enumerate(reversed(series)):
         label = esc(s.label)
         if inside:
             ly = p.mt + p.ph - 6 - 13 * i
             out.append(f'<text x="{p.ml + p.pw - 6}" y="{ly}" class="legend" '
-                       f'text-anchor="end" fill="{s.colour}">{label}</text>')
+                       f'text-anchor="end" fill="{s.colour}"><title>{label}</title>'
+                       f"{esc(_fitted(s.label, p.pw - 12))}</text>")
             continue
         out.append(f'<text x="{lx}" y="14" class="legend" text-anchor="end" '
                    f'fill="{s.colour}">{label}</text>')
@@ -298,7 +318,7 @@ def _legend(p: _Plot, series: Sequence[Series], inside: bool) -> list[str]:
 def line_chart(series: Sequence[Series], *, title: str, ylabel: str = "",
                xlabel: str = "t [s]", width: int = 860, height: int = 170,
                xlog: bool = False, ylog: bool = False, hlines: Iterable[Line] = (),
-               vlines: Iterable[Line] = (), legend_inside: bool = False,
+               vlines: Iterable[Line] = (), legend_inside: bool | str = False,
                min_span: float = 0.0) -> str:
     """Inline SVG line chart of one quantity (``ylabel`` names its unit). hlines/vlines:
     (value, colour, label). ``min_span``: the smallest y range shown [unit]. The legend
@@ -356,4 +376,4 @@ def cdf_chart(samples: dict[str, np.ndarray], *, title: str, deadline_ms: float 
         series.append(Series(label, v, p, PALETTE[i % len(PALETTE)]))
     vlines = [(deadline_ms, "#dc2626", "control period")] if deadline_ms else []
     return line_chart(series, title=title, ylabel="fraction", xlabel="time [ms]", width=width,
-                      height=height, xlog=xlog, vlines=vlines, legend_inside=True)
+                      height=height, xlog=xlog, vlines=vlines, legend_inside="upper-left")

@@ -10,6 +10,7 @@ last line instead of a criterion.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 from reports.html.charts import esc, fmt
@@ -70,10 +71,69 @@ def last_line(text: str) -> str:
     return lines[-1] if lines else ""
 
 
+def severity(f: Failure) -> float:
+    """How far a failure is beyond its limit, relative to the limit: |value - limit| /
+    |limit|; inf for an infinite value or a limit of 0 (a count that must be zero: a
+    collision is beyond any relative scale). What the failures list sorts by."""
+    if not math.isfinite(f.value) or abs(f.limit) < 1e-12:
+        return math.inf
+    return abs(f.value - f.limit) / abs(f.limit)
+
+
+def excess_text(f: Failure) -> str:
+    """``36 %`` beyond a non-zero limit, ``+1`` beyond a limit of 0."""
+    if abs(f.limit) < 1e-12 and math.isfinite(f.value):
+        return f"+{fmt(abs(f.value - f.limit))}{unit_text(f.unit)}"
+    x = severity(f)
+    return "∞" if not math.isfinite(x) else f"{100 * x:.0f} %"
+
+
+def _worst(r: RunEntry) -> Failure | None:
+    if r.status != "fail" or not r.failures:
+        return None
+    return max(r.failures, key=severity)
+
+
+def _run_severity(r: RunEntry) -> float:
+    worst = _worst(r)
+    return severity(worst) if worst is not None else 0.0
+
+
+def triage_section(bad: Sequence[RunEntry]) -> str:
+    """The failures grouped: per first failed criterion (or error/timeout), the number
+    of runs and of families, the worst relative excess, and per family the count; the
+    largest groups first. A 300-run night's 90 failures read as a few groups."""
+    groups: dict[str, list[RunEntry]] = {}
+    for r in bad:
+        key = r.failures[0].criterion if r.status == "fail" and r.failures else r.status
+        groups.setdefault(key, []).append(r)
+    rows = []
+    for key, members in sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0])):
+        families: dict[str, int] = {}
+        for r in members:
+            families[r.family] = families.get(r.family, 0) + 1
+        worsts = [w for r in members if (w := _worst(r)) is not None]
+        worst = max(worsts, key=severity) if worsts else None
+        fam = ", ".join(f"{esc(name or '–')} ({n})" for name, n in
+                        sorted(families.items(), key=lambda kv: (-kv[1], kv[0])))
+        sort = _sort_value(severity(worst)) if worst is not None else "0"
+        rows.append(f'<tr><td>{esc(key)}</td><td class="num">{len(members)}</td>'
+                    f'<td class="num">{len(families)}</td>'
+                    f'<td class="num" data-sort="{sort}">'
+                    f"{esc(excess_text(worst)) if worst is not None else ''}</td>"
+                    f"<td>{fam}</td></tr>")
+    return ('<table class="triage sortable"><thead><tr><th>first failed criterion</th>'
+            "<th>runs</th><th>families</th><th>worst excess</th><th>families (runs)</th>"
+            "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>")
+
+
 def failures_section(runs: Sequence[RunEntry], links: Links) -> str:
-    """The index's failures list (module doc), the first section under the header."""
+    """The index's failures list (module doc), the first section under the header:
+    grouped by criterion and family (:func:`triage_section`), then one row per run,
+    errors and timeouts first, then by severity (the worst relative excess first)."""
     bad = sorted((r for r in runs if r.status != "pass"),
-                 key=lambda r: (STATUS_ORDER.get(r.status, 9), r.scenario, r.label))
+                 key=lambda r: (STATUS_ORDER.get(r.status, 9), -_run_severity(r), r.scenario,
+                                r.label))
     if not bad:
         return ('<section id="failures"><h2>Failures</h2><p class="allpass">every one of '
                 f"the {len(runs)} runs passed</p></section>")
@@ -93,10 +153,17 @@ def failures_section(runs: Sequence[RunEntry], links: Links) -> str:
             body = (f'<td colspan="3" class="err1">{esc(last_line(r.error) or r.status)}</td>'
                     f"<td>{f'+{len(r.failures)}' if r.failures else ''}</td>")
         rows.append(f'<tr class="{esc(r.status)}">{head}{body}'
+                    f'<td class="num" data-sort="{_sort_value(_run_severity(r))}">'
+                    f"{esc(excess_text(w)) if (w := _worst(r)) is not None else ''}</td>"
                     f"<td>{log_link(r, links, from_page=False)}</td></tr>")
+    triage = triage_section(bad) if len(bad) > 1 else ""
     return ('<section id="failures"><h2>Failures <span class="meta">'
-            f"({len(bad)} of {len(runs)} runs did not pass)</span></h2>"
-            '<table class="failures"><thead><tr><th>status</th><th>scenario</th>'
+            f"({len(bad)} of {len(runs)} runs did not pass)</span></h2>{triage}"
+            '<table class="failures sortable"><thead><tr><th>status</th><th>scenario</th>'
             "<th>controller variant</th><th>first failed criterion</th><th>value vs limit</th>"
-            "<th>when</th><th>more</th><th>Rerun log</th></tr></thead><tbody>"
+            "<th>when</th><th>more</th><th>excess</th><th>Rerun log</th></tr></thead><tbody>"
             + "".join(rows) + "</tbody></table></section>")
+
+
+def _sort_value(x: float) -> str:
+    return repr(x) if math.isfinite(x) else "1e308"

@@ -143,7 +143,7 @@ def timing_section(runs: Sequence[RunEntry], pools: Pools) -> str:
         vl = [(deadline, "#dc2626", "control period")] if deadline and loop == "step" else []
         charts.append(line_chart(series, title=f"CDF: {title}", ylabel="fraction of steps",
                                  xlabel="time per step [ms]", width=330, height=230,
-                                 xlog=xlog, vlines=vl, legend_inside=True))
+                                 xlog=xlog, vlines=vl, legend_inside="upper-left"))
     return ('<h2 id="timing">Timing distributions</h2><div class="cdfs">' + "".join(charts)
             + "</div>")
 
@@ -210,6 +210,23 @@ JS = """
   }
   if(q){q.addEventListener('input',apply);}
   boxes.forEach(function(b){b.addEventListener('change',apply);});
+  // click a column head of a sortable table: sort by it (numbers by value), again: reverse
+  document.querySelectorAll('table.sortable, table.runs').forEach(function(t){
+    t.querySelectorAll('thead th').forEach(function(th, col){
+      th.style.cursor='pointer'; th.title='sort';
+      th.addEventListener('click', function(){
+        var body=t.tBodies[0], rows=Array.prototype.slice.call(body.rows);
+        var dir=th.dataset.dir==='asc'?-1:1; th.dataset.dir=dir===1?'asc':'desc';
+        function key(r){var c=r.cells[col]; if(!c){return '';}
+          var v=c.dataset.sort!==undefined?c.dataset.sort:c.textContent.trim();
+          var n=parseFloat(v); return isNaN(n)?v.toLowerCase():n;}
+        rows.sort(function(a,b){var x=key(a),y=key(b);
+          if(typeof x==='number'&&typeof y==='number'){return dir*(x-y);}
+          return dir*String(x).localeCompare(String(y));});
+        rows.forEach(function(r){body.appendChild(r);});
+      });
+    });
+  });
 })();
 """
 

@@ -60,7 +60,13 @@ def default_compare_dir(new: Path) -> Path:
 def cmd_compare(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from reports.compare import DuplicateRuns, NothingToCompare, Tolerances, compare_runs
+    from reports.compare import (
+        DuplicateRuns,
+        NothingToCompare,
+        Tolerances,
+        UnknownTolerance,
+        compare_runs,
+    )
     from reports.compare.render import as_json
 
     try:
@@ -81,6 +87,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         result = compare_runs(Path(args.base), Path(args.new), out, tol)
     except (NothingToCompare, DuplicateRuns) as exc:
         raise UsageError(str(exc)) from exc
+    except UnknownTolerance as exc:
+        raise UsageError(f"--tolerances {args.tolerances}: {exc}") from exc
     except OSError as exc:  # a read-only or full output: exit 2, not 1 ("regression")
         raise UsageError(f"{out}: cannot write the comparison ({exc.strerror or exc}); "
                          "give a writable --out") from exc
