@@ -42,7 +42,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import typing
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, TypeVar
 
@@ -215,25 +215,42 @@ def _copy(value: Any) -> Any:
     return value
 
 
+def _unknown_key(path: str, key: str, fields: Sequence[str]) -> ConfigError:
+    import difflib
+
+    close = difflib.get_close_matches(str(key), list(fields), n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return ConfigError(f"{path}.{key}", f"one of the keys of {path}: {sorted(fields)}{hint}",
+                       key)
+
+
 def _build(cls: type[P], table: Any, path: str) -> P:
+    """``cls`` from ``table``; every unknown key and bad value of the table and its
+    sections is collected and raised together (:attr:`ConfigError.more`)."""
     if not isinstance(table, Mapping):
         raise ConfigError(path, f"a table of {cls.__name__} options", table)
     hints = _hints(cls)
     fields = _fields(cls)
-    for key in table:
-        if key not in fields:
-            raise ConfigError(f"{path}.{key}", f"one of the keys of {path}: {sorted(fields)}",
-                              key)
+    problems = [_unknown_key(path, key, list(fields)) for key in table if key not in fields]
     kwargs: dict[str, Any] = {}
     for name, value in table.items():
+        if name not in fields:
+            continue
         kind = hints[name]
         if _is_section(kind):
-            kwargs[name] = _build(kind, value, f"{path}.{name}")
+            try:
+                kwargs[name] = _build(kind, value, f"{path}.{name}")
+            except ConfigError as exc:
+                problems.extend(exc.all)
             continue
         problem = _leaf_problem(kind, value)
         if problem is not None:
-            raise ConfigError(f"{path}.{name}", problem, value)
+            problems.append(ConfigError(f"{path}.{name}", problem, value))
+            continue
         kwargs[name] = float(value) if kind is float else value
+    if problems:
+        raise ConfigError(problems[0].key, problems[0].expected, problems[0].got,
+                          tuple(problems[1:]))
     try:
         return cls(**kwargs)
     except ConfigError:

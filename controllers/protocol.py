@@ -35,11 +35,20 @@ __all__ = ["Command", "ConfigError", "Controller", "Observation", "ObstaclePolic
 class ConfigError(ValueError):
     """A controller option is wrong. ``key`` names it (dotted), ``expected`` says what fits."""
 
-    def __init__(self, key: str, expected: str, got: Any = None) -> None:
+    def __init__(self, key: str, expected: str, got: Any = None,
+                 more: tuple[ConfigError, ...] = ()) -> None:
         self.key = key
         self.expected = expected
         self.got = got
-        super().__init__(f"{key}: expected {expected}, got {got!r}")
+        # the other problems of the same options table, when all were collected
+        self.more = more
+        super().__init__(f"{key}: expected {expected}, got {got!r}"
+                         + (f" (+{len(more)} more)" if more else ""))
+
+    @property
+    def all(self) -> tuple[ConfigError, ...]:
+        """This problem and every other one found with it."""
+        return (self, *self.more)
 
 
 @dataclass(frozen=True)

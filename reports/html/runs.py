@@ -102,13 +102,15 @@ def _comfort(rec: RunRecord, verdict: Verdict | None, t: np.ndarray, vl: list[Li
 
 
 def _steering(rec: RunRecord, t: np.ndarray, vl: list[Line]) -> str:
-    steer = [Series("steer", t, rec.trace.ego.steer_rad, PALETTE[3])]
+    """The front-wheel angle in degrees, as the Rerun log shows it (one unit for
+    steering everywhere a person reads it; the records keep radians)."""
+    steer = [Series("steer", t, np.degrees(rec.trace.ego.steer_rad), PALETTE[3])]
     for name, label, colour in (("steer_outer_rad", "outer", PALETTE[5]),
                                 ("steer_corr_rad", "inner corr", PALETTE[4])):
         values = rec.trace.extra.get(name)
         if values is not None and np.any(np.isfinite(values) & (values != 0)):
-            steer.append(Series(label, t, values, colour, dash=True, width=1.2))
-    return _chart(steer, "steering (front-wheel angle)", "rad", vl, [])
+            steer.append(Series(label, t, np.degrees(values), colour, dash=True, width=1.2))
+    return _chart(steer, "steering (front-wheel angle)", "deg", vl, [])
 
 
 def _safety(rec: RunRecord, verdict: Verdict | None, t: np.ndarray, vl: list[Line]

@@ -9,6 +9,7 @@ usable).
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TypeVar
@@ -206,7 +207,9 @@ def _spec(cls: type[_Spec], raw: Any, key: str, report: Report) -> _Spec | None:
     ok = True
     for k, v in raw.items():
         if k not in cls._RULES:
-            report.add(f"{key}.{k}", f"one of the keys {list(cls._RULES)}", k)
+            close = difflib.get_close_matches(str(k), list(cls._RULES), n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            report.add(f"{key}.{k}", f"one of the keys {list(cls._RULES)}{hint}", k)
             ok = False
         else:
             problem = cls._RULES[k](v)

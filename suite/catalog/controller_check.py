@@ -5,6 +5,7 @@ builds the controller with those options (once per distinct name and options).""
 from __future__ import annotations
 
 import copy
+import difflib
 import json
 from collections.abc import Iterable
 from typing import Any
@@ -22,7 +23,7 @@ class ControllerChecker:
 
     def __init__(self, known: Iterable[str] | None) -> None:
         self.explicit = known is not None
-        self._cache: dict[str, tuple[str, str, Any] | None] = {}
+        self._cache: dict[str, list[tuple[str, str, Any]]] = {}
         self.registry_error: str | None = None
         if known is not None:
             self.known: list[str] = sorted(set(known))
@@ -34,10 +35,14 @@ class ControllerChecker:
                 self.known = []
                 self.registry_error = f"{type(exc).__name__}: {exc}"
 
-    def check(self, name: str, options: dict[str, Any]) -> tuple[str, str, Any] | None:
-        """None if fine, else (sub-key, expected, got)."""
+    def check(self, name: str, options: dict[str, Any]) -> list[tuple[str, str, Any]]:
+        """[] if fine, else every problem as (sub-key, expected, got)."""
         if name not in self.known:
-            return "name", f"a registered controller, one of {self.known}", name
+            close = difflib.get_close_matches(name, self.known, n=1)
+            hint = (f"; did you mean {close[0]!r}?" if close else
+                    "; a plug-in controller needs --plugin FILE.py (or MODULE) or an "
+                    "installed entry point: forgot --plugin?")
+            return [("name", f"a registered controller, one of {self.known}{hint}", name)]
         cache_key = json.dumps([name, options], sort_keys=True, default=repr)
         if cache_key in self._cache:
             return self._cache[cache_key]
@@ -45,31 +50,27 @@ class ControllerChecker:
         self._cache[cache_key] = result
         return result
 
-    def _build(self, name: str, options: dict[str, Any]) -> tuple[str, str, Any] | None:
+    def _build(self, name: str, options: dict[str, Any]) -> list[tuple[str, str, Any]]:
         try:
             from controllers import registry
             from controllers.protocol import ConfigError
         except Exception:
-            return None  # only reachable with explicit known_controllers
+            return []  # only reachable with explicit known_controllers
         if self.explicit:
             try:
                 available = registry.names()
             except Exception:
-                return None  # registry unavailable: explicit known_controllers only
+                return []  # registry unavailable: explicit known_controllers only
             if name not in available:
-                return None
+                return []
         try:
             registry.make(name, copy.deepcopy(options))
         except ConfigError as exc:
-            key = exc.key
-            if key == "controller":
-                key = ""
-            elif key.startswith("controller."):
-                key = key[len("controller."):]
-            return key, exc.expected, exc.got
+            return [(_sub_key(e.key), e.expected, e.got) for e in exc.all]
         except Exception as exc:
-            return "name", f"a controller that can be built ({type(exc).__name__}: {exc})", name
-        return None
+            return [("name", f"a controller that can be built ({type(exc).__name__}: {exc})",
+                     name)]
+        return []
 
 
     def spec(self, raw: Any, report: Report) -> ControllerSpec | None:
@@ -98,9 +99,16 @@ class ControllerChecker:
             return None
         if not self.known and self.registry_error:
             return ControllerSpec(name, options)  # registry problem reported once
-        problem = self.check(name, options)
-        if problem is not None:
-            sub, expected, got = problem
+        problems = self.check(name, options)
+        for sub, expected, got in problems:
             report.add(f"controller.{sub}" if sub else "controller", expected, got)
+        if problems:
             return None
         return ControllerSpec(name, options)
+
+
+def _sub_key(key: str) -> str:
+    """A ConfigError's dotted key below the scenario's ``controller``."""
+    if key == "controller":
+        return ""
+    return key[len("controller."):] if key.startswith("controller.") else key

@@ -4,6 +4,7 @@ and traffic lanes placed on lanes that exist (and admit passenger cars) there.""
 
 from __future__ import annotations
 
+import difflib
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -38,8 +39,10 @@ def resolve_net(raw: Any, catalog_path: Path, bundled: Sequence[str], report: Re
         if candidate.is_file():
             path = candidate.resolve()
     if path is None:
+        close = difflib.get_close_matches(raw, list(bundled), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
         report.add("net", f"a bundled net (one of {list(bundled)}) or an existing .net.xml "
-                   f"file (relative to {catalog_path.parent})", raw)
+                   f"file (relative to {catalog_path.parent}){hint}", raw)
         return None, None
     try:
         return path, RoadNetwork.load(path)

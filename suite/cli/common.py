@@ -132,3 +132,12 @@ def route_text(scenario: Any) -> str:
     net = RoadNetwork.load(scenario.net_path)
     edges = " → ".join(f"{e} [link]" if net.is_link(e) else e for e in scenario.route)
     return f"{scenario.net_path.name}: route {edges} ({net.route_length_m(scenario.route):.0f} m)"
+
+
+def plain_help(text: str | None) -> str:
+    """A docstring as ``--help`` text: reStructuredText's double backticks and
+    ``:role:`target``` markup removed (``:func:`x``` becomes ``x``)."""
+    import re
+
+    out = re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text or "")
+    return out.replace("``", "")

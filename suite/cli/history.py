@@ -21,7 +21,14 @@ import math
 from pathlib import Path
 from typing import Any
 
-from suite.cli.common import EXIT_OK, Output, UsageError, positive_int, positive_seconds
+from suite.cli.common import (
+    EXIT_OK,
+    Output,
+    UsageError,
+    plain_help,
+    positive_int,
+    positive_seconds,
+)
 
 DEFAULT_WAIT_S = 60.0
 USAGE = ("hwyeval history add DB RUNDIR... [--night-id ID] [--wait S]\n"
@@ -33,7 +40,8 @@ def add_history_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     """The ``history`` sub-command's arguments."""
     s = sub.add_parser("history", help="many nights in a DuckDB database: 'history add DB "
                                        "RUNDIR...', the trend page, --json, --sql",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description=plain_help(__doc__),
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
                        usage=USAGE)
     s.add_argument("words", nargs="+", metavar="DB",
                    help="the database file; 'add DB RUNDIR...' adds nights to it")

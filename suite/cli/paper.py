@@ -52,10 +52,11 @@ def cmd_paper(args: argparse.Namespace) -> int:
     from reports.paper import PaperError, results_markdown, write_paper
 
     out = Path(args.dir)
+    run_code = EXIT_OK
     if args.run:
-        code = _run_catalog(args.catalog, out, args.jobs)
-        if code not in (EXIT_OK, EXIT_FAIL):  # bad input, or interrupted: nothing to draw
-            return code
+        run_code = _run_catalog(args.catalog, out, args.jobs)
+        if run_code not in (EXIT_OK, EXIT_FAIL):  # bad input, or interrupted: nothing to draw
+            return run_code
     if not out.is_dir():
         raise UsageError(f"{out}: no such output directory (run catalogs/paper.toml into it, "
                          "or pass --run)")
@@ -73,4 +74,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
         text.line(f"  not read: {name}: {why}")
     text.line("")
     text.line(results_markdown(report))
+    if run_code == EXIT_FAIL:  # the page is drawn, but a run it rests on did not pass
+        text.line("exit 1: some run of the paper catalog did not pass (see its report)")
+        return EXIT_FAIL
     return EXIT_OK
