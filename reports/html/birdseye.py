@@ -352,5 +352,58 @@ def birdseye_svg(rec: RunRecord | None, verdict: Verdict | None, marks: list[Mar
         note = f"zoom ±{ZOOM_HALF_LENGTH_M:.0f} m around {zoom[1]} · {note}"
     out.append(f'<text x="{width - 10}" y="{v.height - 10}" class="tick" text-anchor="end">'
                f"{esc(note)} · speed {fmt(v0, 3)}–{fmt(v1, 3)} m/s (dark→light)</text>")
+    out += _scale_bar(v) + _glyph_legend(v)
     out.append("</svg>")
     return "".join(out)
+
+
+SCALE_STEPS_M = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0)
+
+
+def _scale_bar(v: _View) -> list[str]:
+    """A bar of a round length (about a sixth of the view) along the driving direction,
+    bottom left, labelled in metres; the lateral scale differs when exaggerated (the
+    note says by how much)."""
+    want = (v.a1 - v.a0) / 6.0
+    length = max((m for m in SCALE_STEPS_M if m <= want), default=SCALE_STEPS_M[0])
+    px = length * v.sx
+    x0, y0 = v.pad + 4, v.height - v.pad - 18
+    return [f'<g class="scale"><line x1="{x0}" y1="{y0}" x2="{x0 + px:.1f}" y2="{y0}" '
+            'stroke="#111827" stroke-width="2"/>'
+            f'<line x1="{x0}" y1="{y0 - 4}" x2="{x0}" y2="{y0 + 4}" stroke="#111827"/>'
+            f'<line x1="{x0 + px:.1f}" y1="{y0 - 4}" x2="{x0 + px:.1f}" y2="{y0 + 4}" '
+            'stroke="#111827"/>'
+            f'<text x="{x0 + px / 2:.1f}" y="{y0 - 6}" class="tick" text-anchor="middle">'
+            f"{length:g} m</text></g>"]
+
+
+LEGEND = (("ego path (speed: dark slow, light fast)", "#440154", "line"),
+          ("ego box", "#2563eb", "box"), ("stalled car", "#b91c1c", "box"),
+          ("other vehicle", "#475569", "box"), ("obstacle ellipse", "#d97706", "dash"),
+          ("start", "#16a34a", "dot"), ("end", "#111827", "square"))
+
+
+def _glyph_legend(v: _View) -> list[str]:
+    """What each glyph means, in one row along the top edge."""
+    out = ['<g class="glyphs">']
+    x, y = v.pad + 4, 14
+    for label, colour, kind in LEGEND:
+        if kind == "line":  # the path's colour runs from slow (dark) to fast (light)
+            out.append(f'<line x1="{x}" y1="{y - 4}" x2="{x + 7}" y2="{y - 4}" '
+                       f'stroke="{colour}" stroke-width="2.6"/><line x1="{x + 7}" '
+                       f'y1="{y - 4}" x2="{x + 14}" y2="{y - 4}" stroke="#fde725" '
+                       'stroke-width="2.6"/>')
+        elif kind == "dash":
+            out.append(f'<rect x="{x}" y="{y - 9}" width="14" height="9" fill="{colour}" '
+                       f'fill-opacity="0.12" stroke="{colour}" stroke-dasharray="3 2"/>')
+        elif kind == "dot":
+            out.append(f'<circle cx="{x + 7}" cy="{y - 4}" r="4" fill="{colour}"/>')
+        elif kind == "square":
+            out.append(f'<rect x="{x + 3}" y="{y - 8}" width="8" height="8" fill="{colour}"/>')
+        else:
+            out.append(f'<rect x="{x}" y="{y - 9}" width="14" height="9" fill="{colour}" '
+                       'fill-opacity="0.6"/>')
+        out.append(f'<text x="{x + 18}" y="{y}" class="tick">{esc(label)}</text>')
+        x += 18 + int(6.2 * len(label)) + 14
+    out.append("</g>")
+    return out
