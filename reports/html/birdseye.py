@@ -352,7 +352,8 @@ def birdseye_svg(rec: RunRecord | None, verdict: Verdict | None, marks: list[Mar
         note = f"zoom ±{ZOOM_HALF_LENGTH_M:.0f} m around {zoom[1]} · {note}"
     out.append(f'<text x="{width - 10}" y="{v.height - 10}" class="tick" text-anchor="end">'
                f"{esc(note)} · speed {fmt(v0, 3)}–{fmt(v1, 3)} m/s (dark→light)</text>")
-    out += _scale_bar(v) + _glyph_legend(v)
+    # the legend once a page (the whole-run view); the zoom below it has the same glyphs
+    out += _scale_bar(v) + (_glyph_legend(v) if zoom is None else [])
     out.append("</svg>")
     return "".join(out)
 
@@ -384,26 +385,9 @@ LEGEND = (("ego path (speed: dark slow, light fast)", "#440154", "line"),
 
 
 def _glyph_legend(v: _View) -> list[str]:
-    """What each glyph means, in one row along the top edge."""
-    out = ['<g class="glyphs">']
-    x, y = v.pad + 4, 14
-    for label, colour, kind in LEGEND:
-        if kind == "line":  # the path's colour runs from slow (dark) to fast (light)
-            out.append(f'<line x1="{x}" y1="{y - 4}" x2="{x + 7}" y2="{y - 4}" '
-                       f'stroke="{colour}" stroke-width="2.6"/><line x1="{x + 7}" '
-                       f'y1="{y - 4}" x2="{x + 14}" y2="{y - 4}" stroke="#fde725" '
-                       'stroke-width="2.6"/>')
-        elif kind == "dash":
-            out.append(f'<rect x="{x}" y="{y - 9}" width="14" height="9" fill="{colour}" '
-                       f'fill-opacity="0.12" stroke="{colour}" stroke-dasharray="3 2"/>')
-        elif kind == "dot":
-            out.append(f'<circle cx="{x + 7}" cy="{y - 4}" r="4" fill="{colour}"/>')
-        elif kind == "square":
-            out.append(f'<rect x="{x + 3}" y="{y - 8}" width="8" height="8" fill="{colour}"/>')
-        else:
-            out.append(f'<rect x="{x}" y="{y - 9}" width="14" height="9" fill="{colour}" '
-                       'fill-opacity="0.6"/>')
-        out.append(f'<text x="{x + 18}" y="{y}" class="tick">{esc(label)}</text>')
-        x += 18 + int(6.2 * len(label)) + 14
-    out.append("</g>")
-    return out
+    """What each glyph means, in one line of text along the top edge (a coloured
+    symbol before each label: one element, a page per run stays small)."""
+    symbol = {"line": "━", "box": "■", "dash": "▭", "dot": "●", "square": "▪"}
+    parts = "".join(f'<tspan fill="{colour}">{symbol[kind]}</tspan> {esc(label)}   '
+                    for label, colour, kind in LEGEND)
+    return [f'<text x="{v.pad + 4}" y="14" class="tick" xml:space="preserve">{parts}</text>']
