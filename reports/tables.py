@@ -180,7 +180,7 @@ def incomplete(record: RunRecord, parts: Parts) -> str:
         if len(record.series) != len(record.trace):
             return (f"{run_dir.name}: {SERIES} has {len(record.series)} rows, "
                     f"{TRACE} {len(record.trace)}")
-    damaged = incomplete_files(run_dir) if record.run_dir is not None else []
+    damaged = incomplete_files(run_dir, record.files) if record.run_dir is not None else []
     if damaged:  # truncated or deleted after the run wrote them: not this run any more
         return f"{run_dir.name}: incomplete run directory ({'; '.join(damaged)})"
     return ""

@@ -105,6 +105,8 @@ class RunRecord:
     verdict: Verdict | None = None
     series: SeriesColumns | None = None
     run_dir: Path | None = None
+    # the files run.json lists with their size and SHA-256 (read back: () in memory)
+    files: tuple[FileDigest, ...] = ()
 
     @property
     def name(self) -> str:
@@ -185,11 +187,9 @@ def file_digests(run_dir: Path) -> tuple[FileDigest, ...]:
     return tuple(out)
 
 
-def read_file_digests(run_dir: Path) -> tuple[FileDigest, ...]:
-    """The ``files`` run.json lists (() for a run.json written without them)."""
-    path = run_dir / RUN_JSON
-    doc = read_json(path)
-    raw = doc.get("files") if isinstance(doc, dict) else None
+def _file_digests(doc: dict[str, Any], path: Path) -> tuple[FileDigest, ...]:
+    """The ``files`` of a parsed run.json (() for one written without them)."""
+    raw = doc.get("files")
     if raw is None:
         return ()
     if not isinstance(raw, list):
@@ -198,19 +198,23 @@ def read_file_digests(run_dir: Path) -> tuple[FileDigest, ...]:
                  for i, item in enumerate(raw))
 
 
-def incomplete_files(run_dir: Path, *, contents: bool = False) -> list[str]:
+def incomplete_files(run_dir: Path, digests: tuple[FileDigest, ...] | None = None, *,
+                     contents: bool = False) -> list[str]:
     """What is wrong with the files run.json lists ([] when complete, or when it lists
     none): a file missing or of another size, and with ``contents`` another SHA-256.
-    Each entry is ``<name>: <what>``."""
+    Each entry is ``<name>: <what>``. ``digests``: the list as already read
+    (``RunRecord.files``), else run.json is read for it."""
+    if digests is None:
+        digests = _read_run_doc(run_dir)[1]
     problems = []
-    for d in read_file_digests(run_dir):
+    for d in digests:
         path = run_dir / d.name
         if not path.is_file():
             problems.append(f"{d.name}: missing")
         elif path.stat().st_size != d.size_bytes:
             problems.append(f"{d.name}: {path.stat().st_size} bytes, run.json says "
                             f"{d.size_bytes}")
-        elif contents and FileDigest(d.name, 0, _sha256_of(path)).sha256 != d.sha256:
+        elif contents and _sha256_of(path) != d.sha256:
             problems.append(f"{d.name}: content differs from run.json's checksum")
     return problems
 
@@ -225,6 +229,11 @@ def _sha256_of(path: Path) -> str:
 
 def read_run_json(run_dir: Path) -> tuple[RunInfo, RunOutcome, Verdict | None]:
     """run.json of ``run_dir``, checked field by field (RecordError names the key)."""
+    return _decode_run_doc(*_read_run_doc(run_dir)[::2])
+
+
+def _read_run_doc(run_dir: Path) -> tuple[dict[str, Any], tuple[FileDigest, ...], Path]:
+    """(run.json parsed and its schema checked, the files it lists, its path)."""
     path = run_dir / RUN_JSON
     doc = read_json(path)
     if not isinstance(doc, dict):
@@ -232,6 +241,11 @@ def read_run_json(run_dir: Path) -> tuple[RunInfo, RunOutcome, Verdict | None]:
     if doc.get("schema") != SCHEMA_VERSION:
         raise RecordError(path, "schema", f"{SCHEMA_VERSION} (this hwyeval's record format)",
                           doc.get("schema"))
+    return doc, _file_digests(doc, path), path
+
+
+def _decode_run_doc(doc: dict[str, Any], path: Path
+                    ) -> tuple[RunInfo, RunOutcome, Verdict | None]:
     info = decode_dataclass(RunInfo, doc.get("info"), path, "info")
     outcome = decode_dataclass(RunOutcome, doc.get("outcome"), path, "outcome")
     raw_verdict = doc.get("verdict")
@@ -261,7 +275,8 @@ def load_run(run_dir: str | Path, *, trace: bool = True, neighbours: bool = True
     run_dir = Path(run_dir)
     if not (run_dir / RUN_JSON).is_file():
         raise FileNotFoundError(f"{run_dir / RUN_JSON}: no run.json, not a run directory")
-    info, outcome, verdict = read_run_json(run_dir)
+    doc, digests, path = _read_run_doc(run_dir)
+    info, outcome, verdict = _decode_run_doc(doc, path)
     road_path = run_dir / ROAD_JSON
     road = RoadRecord.from_plain(read_json(road_path), road_path) if road_path.is_file() \
         else RoadRecord()
@@ -289,7 +304,7 @@ def load_run(run_dir: str | Path, *, trace: bool = True, neighbours: bool = True
         except (OSError, ValueError, KeyError) as exc:
             raise RecordError(arr_path, "", "a readable .npz file", str(exc)) from exc
     return RunRecord(info=info, outcome=outcome, road=road, trace=tr, neighbours=nb,
-                     arrays=ca, verdict=verdict, series=se, run_dir=run_dir)
+                     arrays=ca, verdict=verdict, series=se, run_dir=run_dir, files=digests)
 
 
 def staging_dir(out_dir: Path, name: str) -> Path:

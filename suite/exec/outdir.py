@@ -197,7 +197,7 @@ def finished_record(job: RunJob) -> tuple[RunRecord | None, str]:
     if record.outcome.steps > 0 and not ((run_dir / TRACE).is_file()
                                          and (run_dir / SERIES).is_file()):
         return None, f"incomplete ({TRACE} or {SERIES} missing)"
-    damaged = incomplete_files(run_dir, contents=True)
+    damaged = incomplete_files(run_dir, record.files, contents=True)
     if damaged:
         return None, "incomplete (" + "; ".join(damaged) + ")"
     return record, (f"kept: {record.status}, same scenario content, hwyeval sources "
