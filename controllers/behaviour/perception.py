@@ -123,6 +123,14 @@ class LaneScene:
     def _offsets(self) -> dict[int, float]:
         return {}
 
+    @cached_property
+    def _merging_cache(self) -> dict[int, BoolArray]:
+        return {}
+
+    @cached_property
+    def _entering_cache(self) -> dict[tuple[float, float], list[tuple[int, int]]]:
+        return {}
+
     def offset_m(self, rel: int) -> float:
         """Centre of relative lane ``rel`` from the reference lane's centre [m, left +]:
         lanes shift together where netconvert moves them, so this is the lane spacing."""
@@ -207,7 +215,14 @@ class LaneScene:
         """Vehicles whose lane ends (an acceleration lane, a lane drop:
         ``LaneContext.ending_lanes_by_road``) within ``MERGE_HORIZON_S`` of their driving
         and whose traffic merges into relative lane ``rel``: they must move into it soon
-        (on whichever road they are, ahead of the ego's own)."""
+        (on whichever road they are, ahead of the ego's own). Computed once per scene
+        and lane (the lead search and the merge rules ask for it several times a step)."""
+        cache = self._merging_cache
+        if rel not in cache:
+            cache[rel] = self._merging(rel)
+        return cache[rel]
+
+    def _merging(self, rel: int) -> BoolArray:
         out = np.zeros(self.traffic.count, dtype=bool)
         ends = self.context.ending_lanes_by_road
         pos = self.context.route_pos_m
@@ -247,7 +262,15 @@ class LaneScene:
         does not place on the route (known, not empty), within [-behind_m, ahead_m] of
         the ego's CG along the path, beyond the outer edge of the outermost lane on that
         side, heading along the path (within ENTRY_HEADING_RAD of it, moving forward):
-        they merge into the lanes on that side, whatever their road is called."""
+        they merge into the lanes on that side, whatever their road is called. Computed
+        once per scene and window."""
+        cache = self._entering_cache
+        key = (behind_m, ahead_m)
+        if key not in cache:
+            cache[key] = self._entering_near(behind_m, ahead_m)
+        return cache[key]
+
+    def _entering_near(self, behind_m: float, ahead_m: float) -> list[tuple[int, int]]:
         if self.traffic.count == 0 or not self.lanes:
             return []
         on_route = self.context.reference_index_by_road
