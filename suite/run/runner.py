@@ -120,40 +120,19 @@ def initial_state(path: FrenetPath, front_pos_m: float, speed_mps: float,
     return np.array([x, y, gamma, speed_mps, 0.0, 0.0])
 
 
-def start_lane_offset_m(network: RoadNetwork, route: tuple[str, ...], scenario: Scenario,
-                        path: FrenetPath, s_cg_m: float) -> float:
-    """Lateral offset [m, left +] from the reference path of the centre of the lane the
-    catalog put the ego in, at path position ``s_cg_m``: 0 in a through lane (the
-    reference follows it); in a lane that ends (an acceleration lane, a dropped lane) the
-    reference is the nearest through lane, and the ego starts in its own lane beside it,
-    where the lane-end logic then takes it out. The lane's polyline is projected onto
-    the path and its offset interpolated at ``s_cg_m``."""
-    edge, _ = network.locate(route, scenario.ego.pos_m)
-    lane_id = f"{edge}_{scenario.ego.lane}"
-    shape = next((np.asarray(li.shape_xy_m, dtype=np.float64).reshape(-1, 2)
-                  for li in network.lane_info((edge,)) if li.id == lane_id), None)
-    if shape is None or len(shape) < 2:
+def start_lane_offset_m(lanes: LaneContextMap, lane_index: int, s_m: float) -> float:
+    """Lateral offset [m, left +] from the reference path of the centre of lane
+    ``lane_index`` (the catalog's ``ego.lane``) at path position ``s_m``, from the lane
+    context's offset profiles: 0 in the reference lane (a through lane: the reference
+    follows it); in a lane that ends (an acceleration lane, a dropped lane) the reference
+    is the nearest through lane, and the ego starts in its own lane beside it, where the
+    lane-end logic then takes it out."""
+    context = lanes.at(s_m)
+    slot = context.slots.get(lane_index)
+    if slot is None or lane_index == context.reference_index or not math.isfinite(
+            slot.offset_m):
         return 0.0
-    dense = _densify(shape, 5.0)
-    s, y = path.project(dense[:, 0], dense[:, 1], np.full(len(dense), s_cg_m))
-    s, y = np.asarray(s, dtype=np.float64), np.asarray(y, dtype=np.float64)
-    order = np.argsort(s)
-    s, y = s[order], y[order]
-    if not (s[0] - 1.0 <= s_cg_m <= s[-1] + 1.0):
-        return 0.0
-    offset = float(np.interp(s_cg_m, s, y))
-    # A through lane is the reference itself: keep it exactly on the path.
-    return offset if abs(offset) > 0.5 else 0.0
-
-
-def _densify(shape: np.ndarray, step_m: float) -> np.ndarray:
-    """The polyline (M, 2) with points at most ``step_m`` apart [m]."""
-    pieces = [shape[:1]]
-    for a, b in zip(shape[:-1], shape[1:], strict=True):
-        n = max(1, int(math.ceil(float(np.hypot(*(b - a))) / step_m)))
-        f = np.linspace(0.0, 1.0, n + 1)[1:, None]
-        pieces.append(a + f * (b - a))
-    return np.concatenate(pieces)
+    return float(slot.offset_m)
 
 
 REFERENCE_SMOOTHING_M = 0.5  # the reference is already smooth (suite.road.reference)
@@ -199,9 +178,9 @@ def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: R
                               np.zeros(6), reference_smoothing_m=REFERENCE_SMOOTHING_M)
     path = context.reference_path()
     s_front = ref.path_s(scenario.ego.pos_m)
-    offset = start_lane_offset_m(network, route, scenario, path,
-                                 max(s_front - vehicle.cg_to_front_bumper_m, 0.0))
-    state0 = initial_state(path, s_front, scenario.ego.speed_mps, vehicle, offset)
+    lanes = LaneContextMap(network, route, ref, path)
+    state0 = initial_state(path, s_front, scenario.ego.speed_mps, vehicle,
+                           start_lane_offset_m(lanes, scenario.ego.lane, s_front))
     controller.reset(replace(context, initial_state=state0))
     plant_driven = not isinstance(driver, SumoDriverModel)
     world = SumoWorld(scenario, network, vehicle, run_dir / "sumo", externally_driven=plant_driven)
@@ -217,7 +196,7 @@ def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: R
     recorder = TraceRecorder(n_steps, controller.diagnostics_type, path,
                              float(scenario.record_radius_m))
     stages = Stages(dynamics=dynamics, behaviour=behaviour,
-                    lanes=LaneContextMap(network, route, ref, path),
+                    lanes=lanes,
                     controller=controller, monitor=SafetyMonitor(vehicle), recorder=recorder,
                     stop=StandardStop(path.length_m, options.timeout_s, wall0),
                     set_speed_mps=target, step_s=dt)
