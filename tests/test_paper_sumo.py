@@ -24,7 +24,7 @@ from browser import check_tick_labels, chromium, console_errors, needs_chromium,
 
 from reports.paper import build_paper
 from reports.paper.table import TIMING_MARK
-from suite.stress.tomlout import dumps_catalog
+from suite.catalog.toml_write import dumps_catalog
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 

@@ -76,9 +76,9 @@ def test_known_answers() -> None:
     lims.update(min_ttc_s=0.95, max_abs_lat_acc_mps2=4.89)
     rob = robustness(judged({"min_ttc_s": 2.27, "max_abs_lat_acc_mps2": 2.6}, lims))
     assert math.isclose(rob.value, 1.32) and rob.criterion == "min_ttc_s"
-    # a comfort failure: (4.89 - 5.89) / 1 m/s^2
+    # a comfort failure: (4.89 - 5.89) / 0.5 m/s^2
     rob = robustness(judged({"min_ttc_s": 2.27, "max_abs_lat_acc_mps2": 5.89}, lims))
-    assert math.isclose(rob.value, -1.0) and rob.criterion == "max_abs_lat_acc_mps2"
+    assert math.isclose(rob.value, -2.0) and rob.criterion == "max_abs_lat_acc_mps2"
     assert math.isclose(margin_of("max_abs_yaw_rate_radps", 1.15, 0.95, "max"),
                         -0.2 / SCALES["max_abs_yaw_rate_radps"])
 

@@ -17,6 +17,7 @@ import pandas as pd
 import pytest
 
 from suite.catalog import load_catalog
+from suite.catalog.toml_write import dumps_catalog, toml_value
 from suite.road.lane_graph import RouteLaneGraph
 from suite.road.network import RoadNetwork
 from suite.stress import FEATURES, StressConfig, generate
@@ -26,7 +27,6 @@ from suite.stress.lanes import RouteLanes, lane_curvature
 from suite.stress.netgen import RAMP_EDGE, NetLayout, build_net, route_of
 from suite.stress.plan import BLOCK, STALLED_LENGTH_M, plan_scenarios
 from suite.stress.real import default_real_dir, on_ramps, real_nets
-from suite.stress.tomlout import dumps_catalog, toml_value
 
 REPO = Path(__file__).resolve().parents[1]
 REAL_DIR = default_real_dir()

@@ -162,7 +162,7 @@ def catalog_digest(scenarios: Sequence[str], controllers: Sequence[str],
 
 # results.csv columns that are not metrics (every other column is one, as a DOUBLE)
 NOT_METRICS = ("scenario", "controller", "variant", "status", "failed_criteria", "family",
-               "run")
+               "run", "robustness_criterion")
 
 
 @dataclass(frozen=True)

@@ -51,20 +51,24 @@ from reports.record import Verdict
 __all__ = ["CUMULATIVE", "DEFAULT_SCALE", "SCALES", "Margin", "Robustness", "margin_of",
            "robustness"]
 
-# criterion -> scale s_c in the criterion's unit: one "unit of concern" of each
+# criterion -> scale s_c in the criterion's unit. Safety: its natural unit (1 s of time to
+# collision, 1 m of gap), so that these margins follow the scenario (how close, how soon)
+# and guide a search. Comfort and progress: about a tenth of the default limit, so that
+# while the car cruises (accelerations near 0) their margins (~10) stay above the safety
+# margins instead of capping every quiet run at the same value.
 SCALES: dict[str, float] = {
     "max_at_fault_collisions": 1.0,  # collisions [-]
     "max_collision": 1.0,  # [-]
     "max_offroad_s": 0.1,  # [s]
     "min_ttc_s": 1.0,  # [s]
-    "min_progress_fraction": 0.1,  # [-]
-    "min_long_acc_mps2": 1.0,  # [m/s^2]
-    "max_long_acc_mps2": 1.0,  # [m/s^2]
-    "max_abs_lat_acc_mps2": 1.0,  # [m/s^2]
+    "min_progress_fraction": 0.05,  # [-]
+    "min_long_acc_mps2": 0.4,  # [m/s^2]
+    "max_long_acc_mps2": 0.25,  # [m/s^2]
+    "max_abs_lat_acc_mps2": 0.5,  # [m/s^2]
     "max_abs_yaw_rate_radps": 0.1,  # [rad/s]
     "max_abs_yaw_acc_radps2": 0.2,  # [rad/s^2]
-    "max_abs_long_jerk_mps3": 1.0,  # [m/s^3]
-    "max_abs_jerk_mps3": 1.0,  # [m/s^3]
+    "max_abs_long_jerk_mps3": 0.4,  # [m/s^3]
+    "max_abs_jerk_mps3": 0.8,  # [m/s^3]
     "min_gap_m": 1.0,  # [m]
     "min_ellipse_margin": 1.0,  # [-]
     "max_shoulder_s": 1.0,  # [s]

@@ -4,6 +4,9 @@
     hwyeval run CATALOG --out DIR [--resume | --overwrite] [--jobs N] [--filter GLOB]
                 [--no-log] [--timeout SECONDS] [--executor local|ray] [--ray-address ADDR]
                 [--plugin MODULE ...]
+    hwyeval search CATALOG --out DIR --budget N [--sampler tpe|cmaes|random|qmc] [--seed S]
+                   [--jobs J] [--resume | --overwrite] [--no-log] [--executor local|ray]
+    hwyeval history add DB RUNDIR ... | hwyeval history DB [--out DIR] [--json] [--sql Q]
     hwyeval report DIR
     hwyeval compare BASE NEW [--out DIR] [--tolerances FILE] [--timing-gate] [--json]
     hwyeval view PATH [--failed] [--web [--port N] [--bind ADDR]]
@@ -11,9 +14,10 @@
     hwyeval controllers [NAME] [--plugin MODULE ...]
     hwyeval --version
 
-Exit codes: 0 success (``run``: every scenario passed; ``compare``: no regression),
-1 a scenario failed, errored or timed out (``compare``: a behaviour regression, or a
-timing slowdown with ``--timing-gate``), 2 invalid input: nothing was run or
+Exit codes: 0 success (``run``: every scenario passed; ``compare``: no regression;
+``search``: no failure found within the budget), 1 a scenario failed, errored or timed
+out (``search``: a failure was found; ``compare``: a behaviour regression, or a timing
+slowdown with ``--timing-gate``), 2 invalid input: nothing was run or
 compared (a bad argument, catalog or plug-in, a missing path, an empty baseline, an
 output directory that is not empty without ``--resume`` or ``--overwrite``); ``run``
 stopped by SIGINT (Ctrl-C) or SIGTERM: 130 or 143, after writing the reports of what
@@ -41,12 +45,14 @@ from suite.cli.common import (
     EXIT_OK,
     UsageError,
     err,
+    plain_help,
     positive_int,
     positive_seconds,
 )
 from suite.cli.history import add_history_parser
 from suite.cli.paper import add_paper_parser
 from suite.cli.run import cmd_run
+from suite.cli.search import add_search_parser
 
 __all__ = ["EXIT_FAIL", "EXIT_INPUT", "EXIT_OK", "UsageError", "build_parser", "main"]
 
@@ -122,7 +128,7 @@ def _compare_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="hwyeval", description=__doc__,
+    p = argparse.ArgumentParser(prog="hwyeval", description=plain_help(__doc__),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action=_Version, nargs=0, help="print versions and exit")
     sub = p.add_subparsers(dest="command", required=True)
@@ -155,6 +161,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_plugin(s)
     s.set_defaults(func=cmd_controllers)
     add_paper_parser(sub)
+    add_search_parser(sub)
     add_history_parser(sub)
     return p
 

@@ -81,6 +81,21 @@ class Plugins:
         return tuple(m.label for m in self.modules)
 
 
+def executor_flags(args: argparse.Namespace) -> list[str]:
+    """The flags a resume command repeats for how runs execute: ``--timeout``,
+    ``--executor``, ``--ray-address`` and every ``--plugin`` given."""
+    parts: list[str] = []
+    if args.timeout is not None:
+        parts += ["--timeout", f"{args.timeout:g}"]
+    if args.executor != "local":
+        parts += ["--executor", args.executor]
+    if args.ray_address:
+        parts += ["--ray-address", args.ray_address]
+    for plugin in args.plugin or []:
+        parts += ["--plugin", plugin]
+    return parts
+
+
 def load_plugins(specs: list[str] | None) -> Plugins:
     """Import every ``--plugin`` (path of a .py file or a module name) here; a plug-in
     that does not import is a UsageError naming it and its last error line."""

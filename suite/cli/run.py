@@ -35,6 +35,7 @@ from suite.cli.common import (
     Plugins,
     UsageError,
     err,
+    executor_flags,
     load_catalog_for,
     load_plugins,
     route_warnings,
@@ -114,14 +115,7 @@ def resume_command(args: argparse.Namespace) -> str:
         parts += ["--jobs", str(args.jobs)]
     if args.no_log:
         parts.append("--no-log")
-    if args.timeout is not None:
-        parts += ["--timeout", f"{args.timeout:g}"]
-    if args.executor != "local":
-        parts += ["--executor", args.executor]
-    if args.ray_address:
-        parts += ["--ray-address", args.ray_address]
-    for plugin in args.plugin or []:
-        parts += ["--plugin", plugin]
+    parts += executor_flags(args)
     if getattr(args, "history", None):
         parts += ["--history", args.history]
     if getattr(args, "no_fail", False):

@@ -24,6 +24,7 @@ from typing import Any
 
 from suite import __version__
 from suite.catalog import Catalog, load_catalog
+from suite.catalog.toml_write import dumps_catalog
 from suite.road.network import RoadNetwork
 from suite.stress.config import StressConfig
 from suite.stress.coverage import Coverage, ScenarioFeatures, measure_catalog
@@ -31,7 +32,6 @@ from suite.stress.netgen import build_net, route_of
 from suite.stress.plan import ScenarioPlan, plan_scenarios
 from suite.stress.real import RealNet, real_nets
 from suite.stress.scenarios import StressScenario, resolve
-from suite.stress.tomlout import dumps_catalog
 
 __all__ = ["StressCatalog", "StressManifest", "generate"]
 

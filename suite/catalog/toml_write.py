@@ -1,4 +1,5 @@
-"""A TOML writer for the catalogs the stress generator writes: ``[defaults]`` and
+"""The one TOML writer for the catalogs hwyeval writes (the stress generator's, a
+search's ``found.toml``, an import's ``catalog.toml``): ``[defaults]`` and
 ``[[scenario]]`` tables whose values are strings, ints, floats, bools, lists and tables
 (written inline). Floats are written so that they read back as floats (``25.0``), strings
 and keys as TOML basic strings where they are not bare keys."""
@@ -11,12 +12,13 @@ import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-__all__ = ["dumps_catalog", "toml_value"]
+__all__ = ["dumps_catalog", "toml_key", "toml_value"]
 
 _BARE_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
 
 
-def _key(key: str) -> str:
+def toml_key(key: str) -> str:
+    """``key`` bare where TOML allows, else a basic string (dotted sweep paths)."""
     return key if _BARE_KEY.match(key) else json.dumps(key)
 
 
@@ -34,7 +36,7 @@ def toml_value(value: Any) -> str:
     if isinstance(value, str):
         return json.dumps(value, ensure_ascii=False)
     if isinstance(value, Mapping):
-        inner = ", ".join(f"{_key(str(k))} = {toml_value(v)}" for k, v in value.items())
+        inner = ", ".join(f"{toml_key(str(k))} = {toml_value(v)}" for k, v in value.items())
         return "{ " + inner + " }" if inner else "{}"
     if isinstance(value, Sequence):
         return "[" + ", ".join(toml_value(v) for v in value) + "]"
@@ -44,9 +46,10 @@ def toml_value(value: Any) -> str:
 def _table(name: str, body: Mapping[str, Any]) -> list[str]:
     lines = [name]
     sweep = body.get("sweep")
-    lines += [f"{_key(k)} = {toml_value(v)}" for k, v in body.items() if k != "sweep"]
+    lines += [f"{toml_key(k)} = {toml_value(v)}" for k, v in body.items() if k != "sweep"]
     if isinstance(sweep, Mapping):
-        lines += ["[scenario.sweep]", *(f"{_key(k)} = {toml_value(v)}" for k, v in sweep.items())]
+        lines += ["[scenario.sweep]",
+                  *(f"{toml_key(k)} = {toml_value(v)}" for k, v in sweep.items())]
     return lines
 
 
