@@ -28,8 +28,9 @@ if TYPE_CHECKING:  # numba modules: the registry (and the catalog check in the c
     from controllers.path.frenet import FrenetPath
     from controllers.plant.vehicle_model import VehicleParams
 
-__all__ = ["Command", "ConfigError", "Controller", "Observation", "ObstaclePolicy",
-           "Obstacles", "ScenarioContext", "StepDiagnostics", "SumoDriverModel"]
+__all__ = ["Command", "ConfigError", "Controller", "ControllerBase", "Observation",
+           "ObstaclePolicy", "Obstacles", "ScenarioContext", "StepDiagnostics",
+           "SumoDriverModel"]
 
 
 class ConfigError(ValueError):
@@ -169,6 +170,34 @@ class Controller(Protocol):
     def parameters(self) -> Mapping[str, Any]:
         """JSON-serialisable parameters (nested tables allowed), for logs and reports."""
         ...
+
+
+class ControllerBase:
+    """A :class:`Controller` with defaults for everything but ``reset`` and ``step``.
+
+    Subclass it and write those two: ``diagnostics_type`` is :class:`StepDiagnostics`
+    (override it with your own frozen dataclass), ``obstacle_policy`` None (the controller
+    takes no obstacles: the behaviour keeps it in its lane at the set speed; set an
+    :class:`ObstaclePolicy` to get ellipses), ``parameters()`` {} and ``name`` the name the
+    registry built it under (``controllers.registry.register(name, MyController)``
+    registers the class itself as the factory; docs/plugins.md).
+    """
+
+    name: str = ""
+    diagnostics_type: ClassVar[type[StepDiagnostics]] = StepDiagnostics
+    obstacle_policy: ObstaclePolicy | None = None
+
+    def reset(self, context: ScenarioContext) -> None:
+        """Start a run (once, before the first ``step``)."""
+        raise NotImplementedError(f"{type(self).__name__}.reset")
+
+    def step(self, observation: Observation) -> Command:
+        """One control period: the command to apply until the next call."""
+        raise NotImplementedError(f"{type(self).__name__}.step")
+
+    def parameters(self) -> Mapping[str, Any]:
+        """JSON-serialisable parameters for logs and reports (none by default)."""
+        return {}
 
 
 @dataclass(frozen=True)

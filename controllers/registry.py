@@ -34,10 +34,10 @@ import types
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
-from controllers.params import OptionDoc, describe
-from controllers.protocol import ConfigError, Controller, SumoDriverModel
+from controllers.params import OptionDoc, build, describe
+from controllers.protocol import ConfigError, Controller, ControllerBase, SumoDriverModel
 
 if TYPE_CHECKING:
     from controllers.builtin import ControllerFactory
@@ -189,13 +189,47 @@ def origin(name: str) -> str:
     return _ORIGINS.get(name, "built in")
 
 
-def register(name: str, factory: ControllerFactory, parameters: type | None = None) -> None:
-    """Add a plug-in controller; a name may be registered once only. ``parameters``:
-    the dataclass its options build, if it has options (for :func:`options`)."""
+def register(name: str, factory: ControllerFactory | type[ControllerBase],
+             parameters: type | None = None) -> None:
+    """Add a plug-in controller; a name may be registered once only. ``factory``: a
+    function ``options -> Controller``, or a :class:`controllers.protocol.ControllerBase`
+    subclass (:func:`class_factory` makes the factory). ``parameters``: the dataclass its
+    options build, if it has options (for :func:`options`)."""
     load_entry_points()
     caller = sys._getframe(1).f_globals
     where = caller.get("__file__") or caller.get("__name__", "?")
-    _register(name, factory, parameters, f"module {where}")
+    made = (class_factory(name, factory, parameters)
+            if isinstance(factory, type) and issubclass(factory, ControllerBase)
+            else cast("ControllerFactory", factory))
+    _register(name, made, parameters, f"module {where}")
+
+
+def class_factory(name: str, cls: type[ControllerBase],
+                  parameters: type | None = None) -> ControllerFactory:
+    """The factory of a :class:`ControllerBase` subclass registered as ``name``: with
+    ``parameters`` (a frozen dataclass of ``controllers.params.param`` fields) it builds
+    ``cls(build(parameters, options))``, else ``cls()`` and any option is a ConfigError;
+    the instance's ``name`` is ``name``. ``options["name"]``, if given, must be ``name``."""
+
+    def make_controller(options: Mapping[str, Any]) -> Controller:
+        opts = dict(options)
+        given = opts.pop("name", name)
+        if given != name:
+            raise ConfigError("controller.name", repr(name), given)
+        if parameters is not None:
+            ctl = cls(build(parameters, opts))  # type: ignore[call-arg]
+        elif opts:
+            key = sorted(opts)[0]
+            raise ConfigError(f"controller.{key}", f"no options ({name} takes none)",
+                              opts[key])
+        else:
+            ctl = cls()
+        ctl.name = name
+        return ctl
+
+    make_controller.__module__ = cls.__module__
+    make_controller.__qualname__ = f"class_factory({cls.__qualname__})"
+    return make_controller
 
 
 def options(name: str) -> list[OptionDoc]:

@@ -26,7 +26,7 @@ from controllers.behaviour.types import (
     Traffic,
 )
 from controllers.path.frenet import FrenetPath
-from reports.metrics.geometry import box_corners, box_distance
+from reports.geometry import box_corners, box_distance
 
 W = 3.5
 THREE_LANES = {i: LaneSlot(i, W, True, False) for i in range(3)}

@@ -11,10 +11,20 @@ from scipy.optimize import root
 
 from controllers.path.frenet import FrenetPath
 from controllers.protocol import Obstacles
-from controllers.two_loop.outer.cgmres import CgmresOuter, cgmres_updates
+from controllers.two_loop.outer.cgmres import CgmresOuter
+from controllers.two_loop.outer.cgmres_kernel import (
+    Buffers,
+    Interval,
+    OcpData,
+    Unknowns,
+    cgmres_updates,
+    solver_config,
+    work_size,
+)
 from controllers.two_loop.outer.gmres import cgmres_step
-from controllers.two_loop.outer.ocp import SpmmProblem, obstacle_table, pack_params, stage_width
+from controllers.two_loop.outer.ocp_layout import obstacle_table, pack_params, stage_width
 from controllers.two_loop.outer.params import CgmresParams
+from controllers.two_loop.outer.spmm_problem import SpmmProblem
 
 STRAIGHT = np.array([[0.0, 0.0], [1000.0, 0.0]])
 
@@ -58,9 +68,7 @@ def _converge_fixed(params: CgmresParams, obs: np.ndarray, x0: np.ndarray, vt: f
     udot = np.zeros_like(u)
     meta, coef, _ = path.tables()
     hz = np.array([0.0, params.horizon_s, params.horizon_growth_rate])
-    cfg = np.array([params.k_max, params.zeta_s, params.fd_step, params.z_guard, params.zeta])
-    from controllers.two_loop.outer.cgmres import work_size
-
+    cfg = solver_config(params)
     work = np.zeros(work_size(u.size, params.n_stages, params.k_max))
     xs = np.zeros((params.n_stages + 1, 3))
     stats = np.zeros(4)
@@ -68,8 +76,8 @@ def _converge_fixed(params: CgmresParams, obs: np.ndarray, x0: np.ndarray, vt: f
     es = []
     t = 0.0
     while t < t_end:
-        cgmres_updates(u, udot, x0, x0, t, dt, 1, hz, 0.0, prm, obs, prob.w, meta, coef, cfg,
-                       work, xs, stats)
+        cgmres_updates(Unknowns(u, udot), Interval(x0, x0, t, dt, 1, hz, 0.0),
+                       OcpData(prm, obs, prob.w, meta, coef), cfg, Buffers(work, xs, stats))
         t += dt
         es.append(float(stats[0]))
     return u, es
@@ -141,16 +149,14 @@ def test_guard_keeps_barrier_argument_positive() -> None:
     u[3 * m + 2] = -params.zeta + 0.01  # Z + zeta = 0.01 < z_guard
     u[5 * m + 2] = -params.zeta - 0.5  # already negative
     udot = np.zeros_like(u)
-    from controllers.two_loop.outer.cgmres import work_size
-
     work = np.zeros(work_size(u.size, params.n_stages, params.k_max))
     stats = np.zeros(4)
     meta, coef, _ = path.tables()
-    cfg = np.array([params.k_max, params.zeta_s, params.fd_step, params.z_guard, params.zeta])
-    cgmres_updates(u, udot, x0, x0, 0.0, 0.005, 1, np.array([-100.0, 2.4, 2.0]), 0.0,
-                   pack_params(params, 25.0, row_scaling=params.row_scaling), obs, prob.w,
-                   meta, coef, cfg, work,
-                   np.zeros((11, 3)), stats)
+    cgmres_updates(Unknowns(u, udot),
+                   Interval(x0, x0, 0.0, 0.005, 1, np.array([-100.0, 2.4, 2.0]), 0.0),
+                   OcpData(pack_params(params, 25.0, row_scaling=params.row_scaling), obs,
+                           prob.w, meta, coef),
+                   solver_config(params), Buffers(work, np.zeros((11, 3)), stats))
     assert stats[1] >= 1
     z = u.reshape(params.n_stages, m)[1:, 2]
     assert np.all(z + params.zeta >= params.z_guard - 1e-12)
@@ -304,9 +310,6 @@ def test_cgmres_converges_with_lateral_reference(cost: str) -> None:
     udot = np.zeros_like(u)
     meta, coef, _ = path.tables()
     hz = np.array([0.0, params.horizon_s, params.horizon_growth_rate])
-    cfg = np.array([params.k_max, params.zeta_s, params.fd_step, params.z_guard, params.zeta])
-    from controllers.two_loop.outer.cgmres import work_size
-
     work = np.zeros(work_size(u.size, params.n_stages, params.k_max))
     xs = np.zeros((params.n_stages + 1, 3))
     stats = np.zeros(4)
@@ -314,8 +317,9 @@ def test_cgmres_converges_with_lateral_reference(cost: str) -> None:
     prm_before = prm.copy()
     t = 0.0
     while t < 6.0:
-        cgmres_updates(u, udot, x0, x0, t, 0.005, 1, hz, 0.0, prm, obs, prob.w, meta, coef,
-                       cfg, work, xs, stats)
+        cgmres_updates(Unknowns(u, udot), Interval(x0, x0, t, 0.005, 1, hz, 0.0),
+                       OcpData(prm, obs, prob.w, meta, coef), solver_config(params),
+                       Buffers(work, xs, stats))
         t += 0.005
     assert np.array_equal(prm, prm_before)  # the kernel restores its parameters
     assert stats[0] < 1e-7, stats[0]

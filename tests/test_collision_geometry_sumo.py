@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from geometry_reference import box_corners, box_distance_reference
 
 from reports.metrics import evaluate
 from reports.metrics.collisions import judge_collisions
 from reports.metrics.context import build_context
-from reports.metrics.geometry import box_corners, box_distance_reference
 from reports.record import RunRecord, load_run
 from reports.record.verdict import SUMO_ONLY
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from geometry_reference import box_corners, box_distance_reference, boxes_overlap
 from synthetic_runs import (
     EGO,
     LANE_WIDTH_M,
@@ -38,7 +39,6 @@ from reports.metrics.collisions import (
     segment_hits_box,
 )
 from reports.metrics.context import build_context
-from reports.metrics.geometry import box_corners, box_distance_reference, boxes_overlap
 from reports.metrics.lane_occupancy import LaneTopology, points_in_lane
 from reports.record import (
     LaneRecord,

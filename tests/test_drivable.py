@@ -12,9 +12,9 @@ import pytest
 import synthetic_runs as sr
 from feature_nets import lane_drop_net, taper_net
 
+from reports.geometry import polygons_excess
 from reports.html.failures import failure_detail
 from reports.metrics.drivable import OFFROAD_TOLERANCE_M, drivable_area, lane_pieces
-from reports.metrics.geometry import polygons_excess
 from reports.record import RoadRecord, RunRecord, Trace, load_run
 from reports.record.verdict import CROSSING_SIDES, BoundaryCrossing
 from suite.road.network import RoadNetwork

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from feature_nets import lane_drop_net, taper_net
 
+from reports.geometry import ego_box_corners
 from reports.metrics.drivable import OFFROAD_TOLERANCE_M
-from reports.metrics.geometry import ego_box_corners
 from reports.record import RunRecord, load_run
 from reports.record.verdict import fmt_value
 

@@ -1,14 +1,15 @@
-"""The compiled box geometry (reports.metrics.geometry) against its numpy references and
+"""The compiled box geometry (reports.geometry) against its numpy references and
 known answers: distance, overlap, swept TTC, one box against many, the nearest box."""
 
 from __future__ import annotations
 
 import math
 
+import geometry_reference as gref
 import numpy as np
 import pytest
 
-from reports.metrics import geometry as g
+from reports import geometry as g
 
 
 def _random_boxes(rng: np.random.Generator, n: int, spread_m: float = 8.0) -> np.ndarray:
@@ -22,9 +23,9 @@ def test_distance_and_overlap_equal_the_numpy_reference_on_random_boxes() -> Non
     a, b = _random_boxes(rng, 4000), _random_boxes(rng, 4000)
     a[:4, 1, 0] = np.nan  # numpy's NaN semantics kept: such a box counts as overlapping
     b[4:6, 3, 1] = np.nan
-    dist, ref = g.box_distance(a, b), g.box_distance_reference(a, b)
+    dist, ref = g.box_distance(a, b), gref.box_distance_reference(a, b)
     np.testing.assert_allclose(dist, ref, rtol=1e-12, atol=1e-12)
-    np.testing.assert_array_equal(g.boxes_overlap(a, b), g.boxes_overlap_reference(a, b))
+    np.testing.assert_array_equal(g.boxes_overlap(a, b), gref.boxes_overlap_reference(a, b))
     overlapping = g.boxes_overlap(a, b)
     assert 0.1 < overlapping.mean() < 0.9  # both cases are exercised
     assert np.all(dist[overlapping] == 0.0) and np.all(dist[~overlapping] > 0.0)
@@ -34,10 +35,10 @@ def test_broadcasting_matches_the_reference() -> None:
     rng = np.random.default_rng(2)
     one, many = _random_boxes(rng, 1)[0], _random_boxes(rng, 50).reshape(5, 10, 4, 2)
     assert g.box_distance(one, many).shape == (5, 10)
-    np.testing.assert_allclose(g.box_distance(one, many), g.box_distance_reference(one, many),
+    np.testing.assert_allclose(g.box_distance(one, many), gref.box_distance_reference(one, many),
                                rtol=1e-12, atol=1e-12)
     np.testing.assert_array_equal(g.boxes_overlap(many, one),
-                                  g.boxes_overlap_reference(many, one))
+                                  gref.boxes_overlap_reference(many, one))
     assert g.box_distance(one, one).shape == ()
     with pytest.raises(ValueError, match="4, 2"):
         g.box_distance(np.zeros((3, 2)), np.zeros((3, 2)))
@@ -65,7 +66,7 @@ def test_swept_ttc_equals_the_reference_and_known_answers() -> None:
     vb[:3] = 0.0  # relative motion zero: 'still' on every axis
     va[3] = np.nan
     ttc = g.swept_box_ttc(a, va, b, vb, 10.0)
-    ref = g.swept_box_ttc_reference(a, va, b, vb, 10.0)
+    ref = gref.swept_box_ttc_reference(a, va, b, vb, 10.0)
     np.testing.assert_allclose(ttc, ref, rtol=1e-12, atol=1e-12)
     assert 0.1 < np.isfinite(ttc).mean() < 0.9
     # 10 m nose to tail, closing at 5 m/s: touch after 2 s; receding: never
@@ -91,7 +92,7 @@ def test_one_box_against_many_and_the_nearest_box() -> None:
     for _ in range(1500):
         xs, ys, hs, ls, ws = _scene(rng, int(rng.integers(1, 70)))
         gap, overlap = g.box_gaps(*ego, xs, ys, hs, ls, ws)
-        ref = g.box_distance_reference(g.box_corners(*ego)[None],
+        ref = gref.box_distance_reference(g.box_corners(*ego)[None],
                                        g.box_corners(xs, ys, hs, ls, ws))
         np.testing.assert_allclose(gap, ref, rtol=1e-12, atol=1e-12)
         np.testing.assert_array_equal(overlap, gap == 0.0)

@@ -17,19 +17,16 @@ pytest.importorskip("casadi")
 
 from controllers.params import ParamError  # noqa: E402
 from controllers.protocol import ConfigError, Obstacles  # noqa: E402
-from controllers.two_loop.outer.ipopt import (  # noqa: E402
-    IpoptOuter,
-    StraightPath,
-    _pack_obstacles,
-    benchmark_outer,
-    ellipse_values,
-)
-from controllers.two_loop.outer.ocp import SpmmProblem, obstacle_table  # noqa: E402
+from controllers.two_loop.outer.ipopt_nlp import ellipse_values, pack_obstacles  # noqa: E402
+from controllers.two_loop.outer.ipopt_planner import IpoptOuter  # noqa: E402
+from controllers.two_loop.outer.ocp_layout import obstacle_table  # noqa: E402
 from controllers.two_loop.outer.params import (  # noqa: E402
     CgmresParams,
     IpoptParams,
     ipopt_params,
 )
+from controllers.two_loop.outer.spmm_problem import SpmmProblem  # noqa: E402
+from suite.bench.solvers import StraightPath, benchmark_outer  # noqa: E402
 
 VT = 25.0
 PERIOD = 0.02
@@ -93,7 +90,7 @@ def test_barrier_converges_and_avoids_the_ellipse() -> None:
     assert plan.residual < 1e-6
     assert plan.states.shape == (outer.n + 1, 3) and plan.speeds_mps.shape == (outer.n,)
     assert np.all(np.isfinite(plan.states))
-    c = ellipse_values(plan.states, plan.stage_times_s, _pack_obstacles(obs))[:, 0]
+    c = ellipse_values(plan.states, plan.stage_times_s, pack_obstacles(obs))[:, 0]
     # The barrier form constrains nodes 1..N-1 (as C/GMRES); all stay outside, with margin.
     assert c[1:-1].min() > 0.05
     assert plan.states[:, 1].max() > 1.5  # passes on the left (offset pushes it there)
@@ -107,7 +104,7 @@ def test_hard_formulation_also_avoids() -> None:
     obs = _obstacle()
     plan = outer.update(0.0, np.zeros(3), obs, VT, PERIOD)
     assert not plan.fallback and plan.residual < 1e-6
-    c = ellipse_values(plan.states, plan.stage_times_s, _pack_obstacles(obs))[:, 0]
+    c = ellipse_values(plan.states, plan.stage_times_s, pack_obstacles(obs))[:, 0]
     assert c[1:].min() > -1e-6
     # Without a barrier the plan touches the ellipse (active constraint).
     assert c[1:].min() < 1e-3
@@ -153,11 +150,11 @@ def test_moving_obstacle_is_predicted() -> None:
     obs = _obstacle(30.0, -0.3, vs=15.0)
     plan = outer.update(0.0, np.zeros(3), obs, VT, PERIOD)
     assert not plan.fallback
-    c = ellipse_values(plan.states, plan.stage_times_s, _pack_obstacles(obs))[:, 0]
+    c = ellipse_values(plan.states, plan.stage_times_s, pack_obstacles(obs))[:, 0]
     assert c[1:-1].min() > 0.0
     # A stationary-obstacle reading of the same car would not be satisfied by this plan
     # at the end of the horizon (the ego is past s = 30 m but beside it in time).
-    still = ellipse_values(plan.states, np.zeros(outer.n + 1), _pack_obstacles(obs))[:, 0]
+    still = ellipse_values(plan.states, np.zeros(outer.n + 1), pack_obstacles(obs))[:, 0]
     assert not np.allclose(still, c)
 
 
@@ -219,7 +216,7 @@ def _frenet_path(kind: str) -> Any:
 
 def test_path_lookup_reproduces_the_frenet_path_exactly() -> None:
     """The CasADi B-splines re-express FrenetPath's C² quintic gamma and its kappa."""
-    from controllers.two_loop.outer.ipopt import PathLookup
+    from controllers.two_loop.outer.ipopt_nlp import PathLookup
 
     path = _frenet_path("curved")
     lookup = PathLookup(path)
@@ -259,7 +256,7 @@ def test_ipopt_solution_zeroes_the_cgmres_residual(kind: str, x0: tuple[float, .
     plan = outer.update(0.0, x, obs, VT, PERIOD, lateral_reference_m=y_ref, lateral_weight=c_y)
     assert not plan.fallback
     table = obstacle_table(outer.n_slots)
-    table[0, :6] = _pack_obstacles(obs)[0]
+    table[0, :6] = pack_obstacles(obs)[0]
     table[0, 6] = 1.0
     ref_params = params if c_y is None else IpoptParams(c_y_terminal=0.5, c_y=c_y)
     f, xs, _ = SpmmProblem(path, ref_params).residual(outer.stage_unknowns(), x, table, VT,
@@ -268,7 +265,7 @@ def test_ipopt_solution_zeroes_the_cgmres_residual(kind: str, x0: tuple[float, .
         assert abs(plan.states[-1, 1] - y_ref) < 0.3  # the plan settles on the reference
     assert np.abs(xs - plan.states).max() < 1e-6  # same Euler rollout (exact geometry)
     assert np.abs(f).max() < 1e-6, np.abs(f).max()
-    c = ellipse_values(plan.states, plan.stage_times_s, _pack_obstacles(obs))[:, 0]
+    c = ellipse_values(plan.states, plan.stage_times_s, pack_obstacles(obs))[:, 0]
     assert c[1:-1].min() > 0.05
 
 

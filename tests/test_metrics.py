@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import synthetic_runs as sr
 
+from reports.geometry import box_corners
 from reports.metrics import REQUIRED_METRICS, Evaluation, evaluate, signal
 from reports.metrics.collisions import classify_collisions
 from reports.metrics.comfort import sg_window
 from reports.metrics.context import build_context
 from reports.metrics.drivable import OFFROAD_TOLERANCE_M
-from reports.metrics.geometry import box_corners
 from reports.metrics.ttc import swept_box_ttc
 from reports.record import Failure, RunOutcome, RunRecord, SeriesColumns, Trace, load_run
 from reports.record.codec import to_plain

@@ -1,4 +1,4 @@
-"""controllers.behaviour.decision._select_obstacles, the compiled choice of the vehicles
+"""controllers.behaviour.obstacle_choice._select_obstacles, the compiled choice of the vehicles
 that get an ellipse, equals the numpy/Python form it replaced (relevance masks, then
 leads first and by distance, stable), on random scenes with ties and NaNs."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controllers.behaviour.decision import _select_obstacles
+from controllers.behaviour.obstacle_choice import _select_obstacles
 
 
 def _old_form(ds: np.ndarray, y: np.ndarray, lat: float, rel_lane: np.ndarray,

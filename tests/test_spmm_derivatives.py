@@ -10,17 +10,15 @@ import numpy as np
 import pytest
 
 from controllers.path.frenet import FrenetPath
-from controllers.two_loop.outer.ocp import (
-    SpmmProblem,
-    constraint_eval,
+from controllers.two_loop.outer.ocp import constraint_eval, stage_eval, terminal_eval
+from controllers.two_loop.outer.ocp_layout import (
     obstacle_table,
     pack_params,
-    stage_eval,
     stage_fractions,
     stage_width,
-    terminal_eval,
 )
 from controllers.two_loop.outer.params import OcpParams
+from controllers.two_loop.outer.spmm_problem import SpmmProblem
 
 K_OBS = 2
 

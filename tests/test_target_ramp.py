@@ -13,8 +13,8 @@ import pytest
 
 from controllers.sim.closed_loop import simulate
 from controllers.two_loop.controller import make_two_loop
-from controllers.two_loop.outer.ocp import TargetSpeedRamp
 from controllers.two_loop.outer.params import OcpParams
+from controllers.two_loop.outer.target_ramp import TargetSpeedRamp
 from reports.metrics.comfort import sg
 
 DT = 0.02

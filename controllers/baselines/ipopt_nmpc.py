@@ -2,7 +2,7 @@
 
 The same :class:`controllers.two_loop.controller.TwoLoopController` (Frenet
 projection, lateral-reference shaper, launch supervisor, preview inner loop, obstacle
-policy) with :class:`controllers.two_loop.outer.ipopt.IpoptOuter` as its planner: the
+policy) with :class:`controllers.two_loop.outer.ipopt_planner.IpoptOuter` as its planner: the
 same Euler-discretised J3 problem solved to convergence by Ipopt at every control
 period (one update per period).
 

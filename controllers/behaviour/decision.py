@@ -24,14 +24,14 @@ relative to the reference lane, leads and followers per lane):
    lane's; behind the end of a lane that ends. A moving car ahead is always followed by
    the speed target, never by an ellipse alone.
 3. **The lateral reference**: the centre of the plan's lane, from the reference lane's.
-4. **Obstacles**: ellipses (:mod:`controllers.behaviour.ellipses`) for the vehicles within
-   the detection distance in every lane the ego's box occupies and in the plan's lanes,
-   the leads first, never a car behind in the lane kept or left (only the lane moved
-   into counts behind the ego); the vehicle being passed shifted away from the pass
-   side; a lead the ego must follow made a wall across the carriageway (B of ten lane
-   widths: no way round and no sideways push); an ellipse that would contain the ego (a
-   car in the next lane alongside) narrowed to leave it outside (its barrier would be
-   undefined there).
+4. **Obstacles** (:mod:`controllers.behaviour.obstacle_choice`): ellipses
+   (:mod:`controllers.behaviour.ellipses`) for the vehicles within the detection
+   distance in every lane the ego's box occupies and in the plan's lanes, the leads
+   first, never a car behind in the lane kept or left (only the lane moved into counts
+   behind the ego); the vehicle being passed shifted away from the pass side; a lead the
+   ego must follow made a wall across the carriageway (B of ten lane widths: no way
+   round and no sideways push); an ellipse that would contain the ego (a car in the next
+   lane alongside) narrowed to leave it outside (its barrier would be undefined there).
 """
 
 from __future__ import annotations
@@ -39,11 +39,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 import numpy.typing as npt
 
-from controllers.behaviour.ellipses import ellipse_semi_axes, offset_centre_y
 from controllers.behaviour.following import FollowParams, follow_speed_mps
 from controllers.behaviour.lane_change import (
     LaneChangeParams,
@@ -51,6 +49,7 @@ from controllers.behaviour.lane_change import (
     decel_needed_mps2,
     lane_change_safety,
 )
+from controllers.behaviour.obstacle_choice import pass_side, plan_ellipses, select_obstacles
 from controllers.behaviour.perception import (
     LaneScene,
     Neighbour,
@@ -59,22 +58,16 @@ from controllers.behaviour.perception import (
 )
 from controllers.behaviour.tracking import AccelerationTracker
 from controllers.behaviour.types import (
-    SIDE_FOLLOW,
-    SIDE_LEFT,
-    SIDE_NONE,
-    SIDE_RIGHT,
     Decision,
     EgoFrenet,
     LaneContext,
     ObstaclePolicy,
-    Obstacles,
     Traffic,
 )
 from controllers.path.frenet import FrenetPath
 
 IntpArray = npt.NDArray[np.intp]
 _LANE_CHANGE_RATE_MPS = 1.2  # lateral speed of a change, for "can the ego clear it in time"
-_FOLLOW_WALL_LANES = 10.0  # semi-axis B of a followed lead's ellipse, in lane widths
 
 
 @dataclass(frozen=True)
@@ -154,9 +147,10 @@ class LaneBehaviour:
         plan, reason, follow = self._update(scene, plan, set_speed_mps)
         self._plan = plan
         target, lead = self._speed(scene, plan, set_speed_mps)
-        side = self._side(plan, follow)
-        order = self._select(scene, plan, lead)
-        obstacles = self._ellipses(scene, order, plan, side, lead if follow else -1)
+        side = pass_side(plan, follow)
+        order = select_obstacles(scene, plan, lead, self.policy)
+        obstacles = plan_ellipses(scene, order, plan, side, lead if follow else -1, self.policy,
+                                  self.ego.length_m, self.ego.width_m, self.lane_width_m)
         return Decision(obstacles=obstacles, side=side, reason=reason, target_speed_mps=target,
                         lateral_reference_m=scene.offset_m(plan.lane),
                         obstacle_ids=tuple(traffic.ids[i] for i in order),
@@ -495,117 +489,6 @@ class LaneBehaviour:
             return True
         t_reach = max(lead.gap_m - 1.0, 0.0) / closing
         return bool(t_reach > t_lateral and abs(goal - start) > 0.0)
-
-    # ------------------------------------------------------------------ obstacles
-    @staticmethod
-    def _side(plan: _Plan, follow: bool) -> int:
-        if plan.changing:
-            return SIDE_LEFT if plan.lane > plan.origin else SIDE_RIGHT
-        if follow:
-            return SIDE_FOLLOW
-        if plan.lane != 0:
-            return SIDE_LEFT if plan.lane > 0 else SIDE_RIGHT
-        return SIDE_NONE
-
-    def _select(self, sc: LaneScene, plan: _Plan, lead: int) -> IntpArray:
-        """Vehicles that get an ellipse (module docstring, item 4), nearest first."""
-        pol = self.policy
-        if sc.traffic.count == 0 or pol.max_obstacles == 0:
-            return np.zeros(0, dtype=np.intp)
-        lanes = sc.lanes_occupied() | {plan.lane, plan.origin}
-        leads = {n.index for r in lanes if (n := sc.lead(r)) is not None}
-        if lead >= 0:
-            leads.add(lead)
-        home_lane = plan.origin if plan.changing else plan.lane
-        return _select_obstacles(sc.ds_m, sc.fn.y_m, sc.ego.lat_m, sc.rel_lane,
-                                 np.array(sorted(lanes), dtype=np.int64),
-                                 np.array(sorted(leads), dtype=np.int64), home_lane,
-                                 sc.traffic.stalled, pol.moving_obstacles,
-                                 pol.detection_distance_m, pol.rear_range_m,
-                                 pol.max_obstacles)
-
-    def _ellipses(self, sc: LaneScene, order: IntpArray, plan: _Plan, side: int,
-                  follow_lead: int) -> Obstacles:
-        fn = sc.fn
-        axes = np.array([ellipse_semi_axes(fn.length_m[i], fn.width_m[i], self.ego.length_m,
-                                           self.ego.width_m, self.policy)
-                         for i in order]).reshape(-1, 2)
-        semi_a, semi_b = axes[:, 0].copy(), axes[:, 1].copy()
-        y = fn.y_m[order].copy()
-        if side in (SIDE_LEFT, SIDE_RIGHT):
-            # Shift the vehicles of the lane being left away from the pass side.
-            origin = plan.origin if plan.changing else 0
-            for k, i in enumerate(order):
-                if sc.rel_lane[i] == origin and (plan.changing or plan.lane != 0):
-                    y[k] = offset_centre_y(float(fn.y_m[i]), side, self.policy)
-        for k, i in enumerate(order):
-            if i == follow_lead:
-                # A wall across the carriageway: no lateral way round, and (B >> the
-                # ego's offset) no lateral gradient that would push the ego sideways
-                # while it waits at standstill distance (dc/dy = 2 dy / B²).
-                semi_b[k] = max(semi_b[k], _FOLLOW_WALL_LANES * self.lane_width_m)
-            semi_a[k], semi_b[k] = _leave_ego_outside(
-                float(sc.ego.s_m - fn.s_m[i]), float(sc.ego.lat_m - y[k]), float(semi_a[k]),
-                float(semi_b[k]), 0.5 * float(fn.length_m[i] + self.ego.length_m))
-        return Obstacles(s_m=fn.s_m[order].copy(), y_m=y, speed_s_mps=fn.v_s_mps[order].copy(),
-                         speed_y_mps=fn.v_y_mps[order].copy(), semi_a_m=semi_a,
-                         semi_b_m=semi_b)
-
-
-@numba.njit(cache=True)
-def _select_obstacles(ds_m: npt.NDArray[np.float64], y_m: npt.NDArray[np.float64],
-                      ego_lat_m: float, rel_lane: npt.NDArray[np.int64],
-                      lanes: npt.NDArray[np.int64], leads: npt.NDArray[np.int64],
-                      home_lane: int, stalled: npt.NDArray[np.bool_], moving: bool,
-                      detection_m: float, rear_range_m: float, max_obstacles: int
-                      ) -> IntpArray:
-    """:meth:`LaneBehaviour._select` in one pass: the vehicles within ``detection_m``
-    (distance hypot(ds, y - ego lat) [m]) and at most ``rear_range_m`` behind, in
-    ``lanes`` (relative) or one of ``leads``, not behind the ego in ``home_lane``, stalled
-    ones only unless ``moving``; leads first, then by distance (ties in index order),
-    at most ``max_obstacles``."""
-    n = ds_m.shape[0]
-    is_lead = np.zeros(n, dtype=np.bool_)
-    for k in range(leads.shape[0]):
-        is_lead[leads[k]] = True
-    dist = np.empty(n)
-    relevant = np.zeros(n, dtype=np.bool_)
-    for i in range(n):
-        dist[i] = math.hypot(ds_m[i], y_m[i] - ego_lat_m)
-        in_lanes = is_lead[i]  # a lead by intrusion or merging, whatever its lane
-        for k in range(lanes.shape[0]):
-            if rel_lane[i] == lanes[k]:
-                in_lanes = True
-        ok = dist[i] <= detection_m and ds_m[i] >= -rear_range_m and in_lanes
-        # A car behind in the lane the ego keeps (or leaves) is its follower's business:
-        # as an ellipse it only pushes the ego forward and, squeezed against the lead's,
-        # sideways out of its lane. Behind the ego only the lane moved into counts.
-        if rel_lane[i] == home_lane and ds_m[i] < 0.0:
-            ok = False
-        if not moving and not stalled[i]:
-            ok = False
-        relevant[i] = ok
-    first = np.flatnonzero(relevant & is_lead)
-    second = np.flatnonzero(relevant & ~is_lead)
-    order = np.concatenate((first[np.argsort(dist[first], kind="mergesort")],
-                            second[np.argsort(dist[second], kind="mergesort")]))
-    return order[:max_obstacles].astype(np.intp)
-
-
-def _leave_ego_outside(ds_m: float, dy_m: float, semi_a_m: float, semi_b_m: float,
-                       min_a_m: float) -> tuple[float, float]:
-    """Semi-axes (A, B) such that the ego's CG at (ds, dy) from the centre is outside
-    (ellipse value >= 0.05): where the barrier is undefined the planner fails. The axis
-    along which the ego is deeper shrinks (A: following a car at standstill distance;
-    B: a car alongside in the next lane), A not below the box-sum half length."""
-    along, across = (ds_m / semi_a_m) ** 2, (dy_m / semi_b_m) ** 2
-    if along + across >= 1.05:
-        return semi_a_m, semi_b_m
-    if along >= across and across < 1.0:
-        a = abs(ds_m) / math.sqrt(max(1.05 - across, 1e-3))
-        return max(a, min_a_m), semi_b_m
-    b = abs(dy_m) / math.sqrt(max(1.05 - along, 1e-3))
-    return semi_a_m, max(b, 0.5)
 
 
 __all__ = ["BehaviourParams", "EgoShape", "LaneBehaviour"]

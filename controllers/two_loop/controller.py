@@ -87,7 +87,7 @@ def ipopt_planner(params: IpoptNmpcParams) -> PlannerFactory:
     """Ipopt on ``params.outer``; the NLPs for 0..K obstacles are built at once."""
 
     def factory(path: FrenetPath, n_slots: int) -> OuterPlanner:
-        from controllers.two_loop.outer.ipopt import IpoptOuter
+        from controllers.two_loop.outer.ipopt_planner import IpoptOuter
 
         outer = IpoptOuter(path, params.outer, n_slots)
         outer.prepare()  # NLPs built at reset, not mid-run

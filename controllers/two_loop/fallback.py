@@ -38,8 +38,8 @@ from controllers.behaviour.types import ObstaclePolicy
 from controllers.params import check_leaves, check_range, param
 from controllers.path.frenet import FrenetPath
 from controllers.protocol import Obstacles
-from controllers.two_loop.outer.ocp import TargetSpeedRamp
 from controllers.two_loop.outer.protocol import OuterPlan
+from controllers.two_loop.outer.target_ramp import TargetSpeedRamp
 
 NEED_MARGIN = 1.2  # braking is planned for this multiple of the obstacle's need b [-]
 URGENT_WINDOW_S = 0.5  # the plan's deceleration is read over this much of its horizon [s]

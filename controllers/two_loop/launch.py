@@ -37,9 +37,9 @@ from controllers.behaviour.types import ObstaclePolicy, Obstacles
 from controllers.params import ParamError, check_leaves, check_range, param
 from controllers.path.frenet import FrenetPath, path_gamma
 from controllers.plant.vehicle_model import VehicleParams
-from controllers.two_loop.outer.ocp import TargetSpeedRamp
 from controllers.two_loop.outer.params import OcpParams
 from controllers.two_loop.outer.protocol import OuterPlan
+from controllers.two_loop.outer.target_ramp import TargetSpeedRamp
 
 _PULL_OUT_M = 0.5  # |r_raw - y| above this [m]: the reference asks for a pull-out
 _ON_LANE_M = 0.25  # |r_raw - y| up to this [m]: not pulling out, the OCP's ellipses count

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reports.geometry import box_corners, ego_box_corners
 from reports.html.charts import esc, fmt
 from reports.html.marks import Mark
-from reports.metrics.geometry import box_corners, ego_box_corners
 from reports.record import RunRecord, Verdict
 
 VIRIDIS = ("#440154", "#414487", "#2a788e", "#22a884", "#7ad151", "#fde725")

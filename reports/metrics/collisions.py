@@ -91,8 +91,8 @@ from enum import StrEnum
 
 import numpy as np
 
+from reports.geometry import box_corners, box_distance, boxes_overlap, swept_box_ttc
 from reports.metrics.context import RunContext
-from reports.metrics.geometry import box_corners, box_distance, boxes_overlap, swept_box_ttc
 from reports.metrics.lane_occupancy import LaneTopology
 from reports.metrics.values import Measured, measured
 from reports.record import NeighbourColumns, SumoCollision

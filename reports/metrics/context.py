@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reports.metrics.geometry import ego_box_centres, ego_box_corners
+from reports.geometry import ego_box_centres, ego_box_corners
 from reports.record import RunRecord
 from reports.record.columns import FloatColumn
 

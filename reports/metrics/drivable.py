@@ -24,7 +24,7 @@ Lanes count when passenger cars may use them (:meth:`reports.record.LaneRecord.d
 shoulder lanes only when the scenario allows the shoulder (``info.allow_shoulder``).
 
 A point's *excess* is its distance to the union outside it and minus its depth inside
-(:func:`reports.metrics.geometry.polygons_excess`). A box corner is *off the drivable
+(:func:`reports.geometry.polygons_excess`). A box corner is *off the drivable
 area* when its excess is more than ``OFFROAD_TOLERANCE_M`` (0.3 m).
 
 Metrics: ``offroad_s`` [s] time with any corner off, ``offroad_m`` [m] distance driven
@@ -45,8 +45,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reports.geometry import polygons_excess
 from reports.metrics.context import RunContext
-from reports.metrics.geometry import polygons_excess
 from reports.metrics.values import Measured, extreme, measured
 from reports.record import LaneRecord, MetricValue, RoadRecord
 from reports.record.columns import BoolColumn, FloatColumn
@@ -100,7 +100,7 @@ class DrivableArea:
 
     def excess(self, points_xy_m: np.ndarray) -> tuple[FloatColumn, np.ndarray, np.ndarray]:
         """(excess (P,) [m], piece (P,), edge (P,)) of points (P, 2): see
-        :func:`reports.metrics.geometry.polygons_excess` (+inf, -1, -1 without pieces)."""
+        :func:`reports.geometry.polygons_excess` (+inf, -1, -1 without pieces)."""
         pts = np.asarray(points_xy_m, dtype=np.float64).reshape(-1, 2)
         if self.empty:
             n = pts.shape[0]

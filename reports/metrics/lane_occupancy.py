@@ -16,7 +16,7 @@ SUMO's internal junction lanes start where their incoming lane ends and end wher
 outgoing lane starts.
 
 The ego (corners front-left, rear-left, rear-right, front-right, as
-:func:`reports.metrics.geometry.box_corners` gives them) is **within one lane** when
+:func:`reports.geometry.box_corners` gives them) is **within one lane** when
 every corner is in some lane and either
 
 * one lane holds all four corners, or

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reports.metrics import geometry
+from reports import geometry
+from reports.geometry import box_corners
 from reports.metrics.context import RunContext
-from reports.metrics.geometry import box_corners
 from reports.record.columns import BoolColumn, FloatColumn, IntColumn
 
 TTC_HORIZON_S = 10.0

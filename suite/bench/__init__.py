@@ -5,10 +5,10 @@ this one invocation, and the machine's load average is recorded at its start and
 Parts (each a dict of the returned figures, ready for JSON):
 
 1. ``controller``: the two-loop controller on the plant-only harness
-   (:func:`controllers.bench.run_benchmark`): one C/GMRES outer update and the whole
+   (:func:`suite.bench.controller.run_benchmark`): one C/GMRES outer update and the whole
    control step, p50/p95/p99/max;
 2. ``solvers``: C/GMRES vs the Ipopt NMPC on the same OCP, Ipopt warm-started with the
-   exact Hessian and MUMPS (:func:`controllers.bench.solver_comparison`): p50 and
+   exact Hessian and MUMPS (:func:`suite.bench.solvers.solver_comparison`): p50 and
    variance ratios, raw and per-update minimum over repeats (skipped without CasADi);
 3. ``extrapolation``: the multi-rate world's extrapolation error against SUMO at the
    control rate (:mod:`suite.bench.multirate`);
@@ -66,7 +66,7 @@ def _load() -> list[float]:
 
 
 def _controller_timing() -> dict[str, Any]:
-    from controllers.bench import run_benchmark
+    from suite.bench.controller import run_benchmark
 
     res = run_benchmark(print_fn=None)
     return {k: res[k] for k in ("outer_update", "control_step", "outer_loop_per_step",
@@ -76,7 +76,7 @@ def _controller_timing() -> dict[str, Any]:
 def _solvers(repeats: int) -> dict[str, Any]:
     if importlib.util.find_spec("casadi") is None:
         return {"skipped": "casadi not installed (pip install 'hwyeval[baselines]')"}
-    from controllers.bench import solver_comparison
+    from suite.bench.solvers import solver_comparison
 
     return solver_comparison(repeats=repeats)
 

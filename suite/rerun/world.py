@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import rerun as rr
 
-from reports.metrics.geometry import box_corners
+from reports.geometry import box_corners
 from suite.rerun.blueprint import VIEW_FRAME_SCALE, north_up_transform
 from suite.rerun.paths import ENTITY_PATHS
 from suite.rerun.stream import Colour, FlatStrips, RunLog

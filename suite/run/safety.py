@@ -1,6 +1,6 @@
 """Per-step safety checks of the ego against every other vehicle (oriented boxes).
 
-One compiled call per step (:func:`reports.metrics.geometry.nearest_box`): the ego's
+One compiled call per step (:func:`reports.geometry.nearest_box`): the ego's
 box against all the scene's vehicles at once, far ones culled by their bounding
 circles, giving the nearest box, its distance and whether any box overlaps.
 
@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 
 from controllers.plant.vehicle_model import VehicleParams
-from reports.metrics.geometry import load_kernels, nearest_box
+from reports.geometry import load_kernels, nearest_box
 from suite.run.ego import EgoState
 from suite.world.protocol import Scene
 

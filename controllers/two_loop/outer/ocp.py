@@ -52,7 +52,10 @@ obstacle slots get trivial rows Z - 1 = 0, mu = 0 (docs/method.md §9: x_0 is me
 its constraint cannot change the solution; this keeps F defined when the measured
 state touches an ellipse, and makes empty slots inert).
 
-Packed parameter vector (``pack_params``): see ``_P_*`` indices below.
+Packed parameter vector, obstacle table, stage grid: :mod:`controllers.two_loop.outer.ocp_layout`
+(``pack_params``, ``obstacle_table``, ``stage_fractions``); the Python-side view of the
+problem: :class:`controllers.two_loop.outer.spmm_problem.SpmmProblem`; the target-speed
+ramp fed to it: :mod:`controllers.two_loop.outer.target_ramp`.
 """
 
 from __future__ import annotations
@@ -62,158 +65,24 @@ import math
 import numba
 import numpy as np
 
-from controllers.path.frenet import FrenetPath, path_gamma
-from controllers.two_loop.outer.params import OcpParams
-
-
-class TargetSpeedRamp:
-    """Jerk-limited target speed V_t(t) for the OCP, shared by every outer solver.
-
-    Time-optimal under -d <= a <= accel and |da/dt| <= j: with e = set point - V_t
-    and e_stop = e - 1.5 a dt - a |a| / (2 j) (what is left once the ramp's
-    acceleration a has been brought back to zero at the jerk limit, discretely), a is
-    driven at most j dt per update towards +accel if e_stop > 0, else -d; V_t <- V_t +
-    a dt. Once the set point is within one step and |a| <= j dt, V_t lands on it with
-    a = 0. A change of the set point by dv therefore takes about |dv| / a_lim + a_lim / j
-    seconds (a_lim = accel or d) when |dv| >= a_lim² / j, and 2 sqrt(|dv| / j) below
-    (a triangle in a, peak sqrt(|dv| j)).
-
-    Two deceleration limits d: ``set_speed_decel_mps2`` (a comfortable one) while the
-    set point is at or above ``cruise_speed_mps`` (the run's cruise set-point: a slower
-    set speed, or a start faster than it, with nothing ahead to follow), and
-    ``decel_mps2`` when the set point is below the cruise speed (the behaviour lowered it
-    to follow a lead or to stop: the firmer limit its following law counts on).
-    ``set_speed_decel_mps2`` None, or ``cruise_speed_mps`` inf (the default), gives
-    ``decel_mps2`` everywhere.
-
-    V_t, a and hence the OCP's cost change continuously, so neither the continuation
-    nor the car sees a step in speed or acceleration (a bare rate limit switches the
-    acceleration on at once: a jerk spike at every start and braking onset). The ramp
-    starts where the car is (``reset`` with the measured speed): started at the set point
-    instead, the plan's speed input V would step to it at once.
-    """
-
-    def __init__(self, accel_mps2: float, decel_mps2: float, jerk_mps3: float,
-                 set_speed_decel_mps2: float | None = None) -> None:
-        self.accel_mps2 = float(accel_mps2)
-        self.decel_mps2 = float(decel_mps2)
-        self.jerk_mps3 = float(jerk_mps3)
-        self.set_speed_decel_mps2 = (None if set_speed_decel_mps2 is None
-                                     else float(set_speed_decel_mps2))
-        self.cruise_speed_mps = math.inf
-        self.speed_mps = 0.0
-        self.ramp_accel_mps2 = 0.0
-
-    def reset(self, speed_mps: float) -> None:
-        self.speed_mps = float(speed_mps)
-        self.ramp_accel_mps2 = 0.0
-
-    def decel_for_mps2(self, set_speed_mps: float) -> float:
-        """The deceleration limit d [m/s², > 0] toward ``set_speed_mps`` (class docstring)."""
-        if self.set_speed_decel_mps2 is not None and set_speed_mps >= self.cruise_speed_mps:
-            return self.set_speed_decel_mps2
-        return self.decel_mps2
-
-    def update(self, set_speed_mps: float, dt_s: float) -> float:
-        """Advance by ``dt_s`` towards ``set_speed_mps``; returns V_t [m/s]."""
-        if dt_s <= 0.0:
-            return self.speed_mps
-        target = float(set_speed_mps)
-        a = self.ramp_accel_mps2
-        step = self.jerk_mps3 * dt_s
-        err = target - self.speed_mps
-        if abs(err) <= step * dt_s and abs(a) <= step:
-            self.speed_mps, self.ramp_accel_mps2 = target, 0.0
-            return self.speed_mps
-        # Left over after this step (a dt) and after ramping a to zero from the next one
-        # (a|a|/2j, plus half a step for the discrete ramp).
-        e_stop = err - 1.5 * a * dt_s - a * abs(a) / (2.0 * self.jerk_mps3)
-        a_goal = self.accel_mps2 if e_stop > 0.0 else -self.decel_for_mps2(target)
-        a += min(max(a_goal - a, -step), step)
-        self.ramp_accel_mps2 = a
-        self.speed_mps = max(self.speed_mps + a * dt_s, 0.0)
-        return self.speed_mps
-
-# Indices into the packed parameter vector.
-_P_COST, _P_CY, _P_CYD, _P_CSD, _P_CTHD, _P_CTH, _P_CV, _P_CZ, _P_ZETA = range(9)
-_P_CYT, _P_CET, _P_VT, _P_SCALE = 9, 10, 11, 12
-_P_YREF, _P_YREFD = 13, 14  # lateral reference yr [m] and its rate [m/s] (C/GMRES only)
-_P_CYR = 15  # rate of Cy [1/(m² s²)] when the caller schedules it (C/GMRES only)
-N_PACKED = 16
-# Fast-math flags for the hot kernels: no 'nnan'/'ninf', so non-finite checks stay valid.
-_FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
-# Obstacle table columns: s, y, v_s, v_y, A, B, active, barrier weight w, dw/dt.
-OBS_COLS = 9
-
-
-def stage_width(n_slots: int) -> int:
-    """Unknowns per stage m = 2 + 2K (two inputs, a slack and a multiplier per slot)."""
-    return 2 + 2 * n_slots
-
-
-def stage_fractions(params: OcpParams) -> np.ndarray:
-    """tau_i / T, shape (N+1,), from 0 to 1 (uniform or Chebyshev)."""
-    i = np.arange(params.n_stages + 1, dtype=np.float64)
-    if params.chebyshev:
-        w = 0.5 * (1.0 - np.cos(i * np.pi / params.n_stages))
-    else:
-        w = i / params.n_stages
-    w[0], w[-1] = 0.0, 1.0
-    return w
-
-
-def stage_times(params: OcpParams, horizon_s: float | None = None) -> np.ndarray:
-    """Stage nodes tau_i [s], shape (N+1,), for the full (or a given) horizon."""
-    return stage_fractions(params) * (params.horizon_s if horizon_s is None else horizon_s)
-
-
-def pack_params(params: OcpParams, target_speed_mps: float,
-                lateral_reference_m: float = 0.0, lateral_reference_rate_mps: float = 0.0,
-                lateral_weight: float | None = None, lateral_weight_rate: float = 0.0,
-                row_scaling: bool = False) -> np.ndarray:
-    """Packed float vector (N_PACKED,) for the compiled kernels (per-update data included).
-
-    target_speed_mps: Vt [m/s]; lateral_reference_m: yr [m] in Cy (y - yr)² and
-    CyT (y_N - yr)²; lateral_weight: Cy [1/(m² s)] of this update (None: params.c_y;
-    a caller may schedule it); the rates yr' [m/s] and Cy' [1/(m² s²)] are used by
-    :func:`controllers.two_loop.outer.cgmres.cgmres_updates` to move yr and Cy across a
-    control period (ignored by the residual itself); row_scaling: the residual returns
-    D(U) F (a C/GMRES device, see :func:`ocp_residual`).
-    """
-    out = np.zeros(N_PACKED)
-    out[_P_COST] = params.cost_id
-    out[_P_CY] = params.c_y if lateral_weight is None else lateral_weight
-    out[_P_CYD] = params.c_ydot
-    out[_P_CSD] = params.c_sdot
-    out[_P_CTHD] = params.c_thetadot
-    out[_P_CTH] = params.c_theta
-    out[_P_CV] = params.c_v
-    out[_P_CZ] = params.c_z
-    out[_P_ZETA] = params.zeta
-    out[_P_CYT] = params.c_y_terminal
-    out[_P_CET] = params.c_e_terminal
-    out[_P_VT] = target_speed_mps
-    out[_P_SCALE] = 1.0 if row_scaling else 0.0
-    out[_P_YREF] = lateral_reference_m
-    out[_P_YREFD] = lateral_reference_rate_mps
-    out[_P_CYR] = lateral_weight_rate
-    return out
-
-
-def obstacle_table(n_slots: int) -> np.ndarray:
-    """Empty obstacle table (K, 9).
-
-    Columns: s, y [m] and v_s, v_y [m/s] at the table's time stamp, A, B [m],
-    active (0/1), barrier weight w in [0, 1] at the time stamp, dw/dt [1/s].
-    Slot j's barrier weight at update time t is Cz clip(w + dw/dt (t - t_stamp), 0, 1):
-    obstacles fade in and out of the problem instead of switching (see
-    ``controllers.two_loop.outer.cgmres``); the fade enters F_t like the obstacle's motion.
-    """
-    tab = np.zeros((n_slots, OBS_COLS))
-    tab[:, 4] = 1.0
-    tab[:, 5] = 1.0
-    tab[:, 7] = 1.0
-    return tab
+from controllers.path.frenet import path_gamma
+from controllers.two_loop.outer.ocp_layout import (
+    _FM,
+    _P_CET,
+    _P_COST,
+    _P_CSD,
+    _P_CTH,
+    _P_CTHD,
+    _P_CV,
+    _P_CY,
+    _P_CYD,
+    _P_CYT,
+    _P_CZ,
+    _P_SCALE,
+    _P_VT,
+    _P_YREF,
+    _P_ZETA,
+)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -624,59 +493,3 @@ def deactivate_slot(uvec: np.ndarray, n: int, k_obs: int, j: int) -> None:
     for i in range(n):
         uvec[i * m + 2 + j] = 1.0
         uvec[i * m + 2 + k_obs + j] = 0.0
-
-
-class SpmmProblem:
-    """Python-side view of the discretised OCP for one path (tests, baselines, tools).
-
-    Holds the path tables and stage fractions; the number of slots K is that of the
-    obstacle table ``obs`` (K, OBS_COLS) each call gets, U has N (2 + 2K) entries.
-    ``residual(U, x0, ...)`` returns F (N m,), the states and costates (N+1, 3). Not
-    used in the real-time loop (which calls the kernels).
-    """
-
-    def __init__(self, path: FrenetPath, params: OcpParams) -> None:
-        self.path = path
-        self.params = params
-        self.meta, self.coef, _ = path.tables()
-        self.w = stage_fractions(params)
-
-    def n_unknowns(self, n_slots: int) -> int:
-        """N (2 + 2K): the length of U with K obstacle slots."""
-        return self.params.n_stages * stage_width(n_slots)
-
-    def residual(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray, target_speed: float,
-                 horizon: float | None = None, tshift: float = 0.0, scaled: bool = False,
-                 lateral_reference_m: float = 0.0,
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(F, states (N+1, 3), costates (N+1, 3)); F unscaled unless ``scaled``."""
-        n = self.params.n_stages
-        prm = pack_params(self.params, target_speed, lateral_reference_m, row_scaling=scaled)
-        xs = np.empty((n + 1, 3))
-        ps = np.empty((n + 1, 12))
-        f = np.empty(self.n_unknowns(obs.shape[0]))
-        ocp_residual(np.ascontiguousarray(uvec, dtype=np.float64),
-                     np.asarray(x0, dtype=np.float64), float(horizon or self.params.horizon_s),
-                     float(tshift), prm, obs, self.w, self.meta, self.coef, xs, ps, f)
-        return f, xs, ps[:, :3].copy()
-
-    def objective(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray, target_speed: float,
-                  horizon: float | None = None, tshift: float = 0.0,
-                  with_multipliers: bool = False, lateral_reference_m: float = 0.0) -> float:
-        """The discrete objective (reduced Lagrangian with ``with_multipliers``)."""
-        return float(ocp_objective(np.ascontiguousarray(uvec, dtype=np.float64),
-                                   np.asarray(x0, dtype=np.float64),
-                                   float(horizon or self.params.horizon_s), float(tshift),
-                                   pack_params(self.params, target_speed, lateral_reference_m),
-                                   obs, self.w,
-                                   self.meta, self.coef, with_multipliers))
-
-    def initial_guess(self, x0: np.ndarray, obs: np.ndarray, target_speed: float,
-                      tshift: float = 0.0, lateral_reference_m: float = 0.0) -> np.ndarray:
-        """The exact zero-horizon solution (:func:`stage_init`), U of length N (2 + 2K)."""
-        u = np.empty(self.n_unknowns(obs.shape[0]))
-        stage_init(np.asarray(x0, dtype=np.float64), float(tshift),
-                   pack_params(self.params, target_speed, lateral_reference_m), obs,
-                   self.meta, self.coef,
-                   self.params.n_stages, u)
-        return u

@@ -36,7 +36,7 @@ class OcpParams:
     Terminal: CyT (y_N - yr)² + CeT e_N² (CeT for J3 only).
 
     Target speed Vt: the set-point through the jerk-limited ramp
-    (:class:`controllers.two_loop.outer.ocp.TargetSpeedRamp`), from the measured speed at
+    (:class:`controllers.two_loop.outer.target_ramp.TargetSpeedRamp`), from the measured speed at
     a (re)start: acceleration up to ``target_accel_mps2``, deceleration up to
     ``set_speed_decel_mps2`` toward the run's cruise set-point and ``target_decel_mps2``
     toward a set-point the behaviour lowered below it (following), jerk up to

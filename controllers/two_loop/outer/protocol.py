@@ -1,7 +1,7 @@
 """The outer loop's role (docs/method.md §1, §5): a planner on the SPMM in the Frenet frame.
 
 C/GMRES (:class:`controllers.two_loop.outer.cgmres.CgmresOuter`) and the Ipopt baseline
-(:class:`controllers.two_loop.outer.ipopt.IpoptOuter`) both implement
+(:class:`controllers.two_loop.outer.ipopt_planner.IpoptOuter`) both implement
 :class:`OuterPlanner`, so the two-loop controller runs either on the same scenarios.
 
 Frenet state (augmented model (36), used with J3): x = [s_m, y_m, theta_rad] where
@@ -95,7 +95,7 @@ class CruiseAware(Protocol):
     """A planner that takes the run's cruise set-point (after ``reset``): set-points at
     or above it ramp down at ``set_speed_decel_mps2``, lower ones (the behaviour lowered
     them to follow) at ``target_decel_mps2``
-    (:class:`controllers.two_loop.outer.ocp.TargetSpeedRamp`). Both built-in planners
+    (:class:`controllers.two_loop.outer.target_ramp.TargetSpeedRamp`). Both built-in planners
     are; a planner that is not ramps as it likes (the controller only tells those that
     are)."""
 

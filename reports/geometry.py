@@ -1,5 +1,9 @@
 """Oriented-box geometry for collision, gap and TTC checks, and the point-to-polygon excess
-of the drivable area: compiled kernels, numpy references.
+of the drivable area: compiled kernels.
+
+The lowest layer of ``reports`` (below ``reports.record``): the simulation loop's per-step
+safety check (``suite.run.safety``), the metrics, the bird's-eye view and the Rerun world
+all take their boxes from here.
 
 A box is (cx, cy, heading_rad, length_m, width_m): centre [m], heading CCW from +X [rad],
 length and width [m]. Its corners (4, 2) are, in this order, front-left, rear-left,
@@ -22,9 +26,8 @@ Three questions, each over many boxes in one compiled call (numba, ``cache=True`
 A fourth, for the drivable area (:func:`polygons_excess`): the signed excess of points
 over a union of convex polygons (distance outside, minus the depth inside).
 
-The kernels follow numpy's NaN propagation exactly, so that they agree with the numpy
-references (:func:`boxes_overlap_reference`, :func:`box_distance_reference`,
-:func:`swept_box_ttc_reference`, kept for the tests) on every input: a box with a NaN
+The kernels follow numpy's NaN propagation exactly (the tests hold them to numpy
+references, ``tests/geometry_reference.py``, on every input): a box with a NaN
 coordinate is separated on no axis, hence *overlapping* at distance 0 (callers mask
 non-finite boxes themselves, as the metrics do; SUMO never reports one).
 
@@ -35,11 +38,10 @@ ego's) against every neighbour at once, from the boxes' parameters (no corner ar
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import numba
 import numpy as np
-
-from reports.record.meta import EgoBox
 
 _NAN = math.nan
 
@@ -444,86 +446,20 @@ def load_kernels() -> None:
     polygons_excess(np.zeros((1, 2)), one)
 
 
-# ------------------------------------------------------------------ numpy references
-
-
-def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from points p (..., 2) to segments a-b (..., 2)."""
-    ab = b - a
-    denom = np.maximum(np.sum(ab * ab, axis=-1), 1e-12)
-    t = np.clip(np.sum((p - a) * ab, axis=-1) / denom, 0.0, 1.0)
-    closest = a + t[..., None] * ab
-    out: np.ndarray = np.linalg.norm(p - closest, axis=-1)
-    return out
-
-
-def boxes_overlap_reference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """numpy reference of :func:`boxes_overlap` (separating axes, broadcast)."""
-    a, b = np.broadcast_arrays(a, b)
-    overlap = np.ones(a.shape[:-2], dtype=bool)
-    for poly in (a, b):
-        for i in range(2):  # a rectangle has two distinct edge normals
-            edge = poly[..., i + 1, :] - poly[..., i, :]
-            normal = np.stack([-edge[..., 1], edge[..., 0]], axis=-1)
-            pa = np.einsum("...kd,...d->...k", a, normal)
-            pb = np.einsum("...kd,...d->...k", b, normal)
-            separated = (pa.max(-1) < pb.min(-1)) | (pb.max(-1) < pa.min(-1))
-            overlap &= ~separated
-    return overlap
-
-
-def box_distance_reference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """numpy reference of :func:`box_distance` (32 point-segment distances, broadcast)."""
-    a, b = np.broadcast_arrays(a, b)
-    best = np.full(a.shape[:-2], np.inf)
-    for poly_p, poly_s in ((a, b), (b, a)):
-        for k in range(4):
-            p = poly_p[..., k, :]
-            for e in range(4):
-                d = _point_segment_distance(p, poly_s[..., e, :], poly_s[..., (e + 1) % 4, :])
-                best = np.minimum(best, d)
-    out: np.ndarray = np.where(boxes_overlap_reference(a, b), 0.0, best)
-    return out
-
-
-def swept_box_ttc_reference(corners_a: np.ndarray, vel_a: np.ndarray, corners_b: np.ndarray,
-                            vel_b: np.ndarray, horizon_s: float) -> np.ndarray:
-    """numpy reference of :func:`swept_box_ttc`."""
-    a = np.asarray(corners_a, dtype=np.float64)
-    b = np.asarray(corners_b, dtype=np.float64)
-    a, b = np.broadcast_arrays(a, b)
-    w = np.broadcast_to(np.asarray(vel_a, dtype=np.float64) - np.asarray(vel_b, dtype=np.float64),
-                        a.shape[:-2] + (2,))
-    t_enter = np.full(a.shape[:-2], -np.inf)
-    t_exit = np.full(a.shape[:-2], np.inf)
-    never = np.zeros(a.shape[:-2], dtype=bool)
-    for poly in (a, b):
-        for i in range(2):
-            edge = poly[..., i + 1, :] - poly[..., i, :]
-            normal = np.stack([-edge[..., 1], edge[..., 0]], axis=-1)
-            norm = np.linalg.norm(normal, axis=-1, keepdims=True)
-            normal = normal / np.maximum(norm, 1e-12)
-            pa = np.einsum("...kd,...d->...k", a, normal)
-            pb = np.einsum("...kd,...d->...k", b, normal)
-            a_min, a_max = pa.min(-1), pa.max(-1)
-            b_min, b_max = pb.min(-1), pb.max(-1)
-            c = np.einsum("...d,...d->...", w, normal)
-            still = np.abs(c) < 1e-9
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t1 = (b_min - a_max) / c
-                t2 = (b_max - a_min) / c
-            lo = np.where(still, -np.inf, np.minimum(t1, t2))
-            hi = np.where(still, np.inf, np.maximum(t1, t2))
-            never |= still & ((a_min > b_max) | (a_max < b_min))
-            t_enter = np.maximum(t_enter, lo)
-            t_exit = np.minimum(t_exit, hi)
-    hit = ~never & (t_enter <= t_exit) & (t_exit >= 0.0)
-    ttc = np.where(hit, np.maximum(t_enter, 0.0), np.inf)
-    out: np.ndarray = np.where(ttc <= horizon_s, ttc, np.inf)
-    return out
-
-
 # ------------------------------------------------------------------ the ego's box
+
+
+class BoxShape(Protocol):
+    """A body box relative to its CG [m] (``reports.record.meta.EgoBox`` is one)."""
+
+    @property
+    def length_m(self) -> float: ...
+
+    @property
+    def width_m(self) -> float: ...
+
+    @property
+    def cg_to_box_centre_m(self) -> float: ...
 
 
 def ego_box_centre(x_cg: float, y_cg: float, psi_rad: float,
@@ -535,7 +471,7 @@ def ego_box_centre(x_cg: float, y_cg: float, psi_rad: float,
 
 
 def ego_box_centres(x_m: np.ndarray, y_m: np.ndarray, psi_rad: np.ndarray,
-                    ego: EgoBox) -> tuple[np.ndarray, np.ndarray]:
+                    ego: BoxShape) -> tuple[np.ndarray, np.ndarray]:
     """Box centres (T,) [m] along a CG path (T,): ``cg_to_box_centre_m`` ahead of the CG
     along the yaw."""
     psi = np.asarray(psi_rad, dtype=np.float64)
@@ -544,7 +480,7 @@ def ego_box_centres(x_m: np.ndarray, y_m: np.ndarray, psi_rad: np.ndarray,
 
 
 def ego_box_corners(x_m: np.ndarray, y_m: np.ndarray, psi_rad: np.ndarray,
-                    ego: EgoBox) -> np.ndarray:
+                    ego: BoxShape) -> np.ndarray:
     """Corners (T, 4, 2) [m] of the ego box along a CG path (T,)."""
     cx, cy = ego_box_centres(x_m, y_m, psi_rad, ego)
     return box_corners(cx, cy, psi_rad, ego.length_m, ego.width_m).reshape(cx.shape[0], 4, 2)

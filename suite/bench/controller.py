@@ -1,4 +1,4 @@
-"""Timing benchmark of the two-loop controller on the plant-only closed loop.
+"""``hwyeval bench``'s controller part: the two-loop controller timed on the plant-only loop.
 
 ``run_benchmark`` drives :class:`TwoLoopController` on a straight road at 25 m/s
 past three stalled cars (one in the ego lane, two in the right lane, so that all
@@ -132,78 +132,3 @@ def run_benchmark(options: Mapping[str, Any] | None = None, duration_s: float = 
                  f"guard firings {results['guard_fired']}")
     return results
 
-
-if __name__ == "__main__":
-    run_benchmark()
-
-
-def solver_comparison(repeats: int = 5, n_slots: int = 3,
-                      **scenario: Any) -> dict[str, Any]:
-    """C/GMRES vs the Ipopt NMPC on the same OCP and scenario
-    (:func:`controllers.two_loop.outer.ipopt.benchmark_outer`: straight road, 25 m/s, a
-    stalled car entering mid-run), each solver run ``repeats`` times after an untimed
-    warm-up (numba cache, NLP construction).
-
-    Ipopt at its best: warm start (the previous solution and multipliers, mu_init 1e-6),
-    exact Hessian, MUMPS (``IpoptOuter``'s options). Per solver: ``raw``, the update
-    times [s] pooled over the repeats, and ``min_of_repeats``, each update's minimum
-    over the repeats (the update sequence is deterministic, so the minimum removes the
-    machine's preemptions and keeps the solver's own variation: Ipopt's iteration
-    counts, C/GMRES's fixed work). Ratios Ipopt / C/GMRES of p50, p99 and variance for
-    both, and of the per-update minima split at the update where the obstacle enters
-    the problem (``..._without_obstacle``, ``..._with_obstacle``: C/GMRES's time is
-    bimodal, ~20 us with empty slots and ~80 us with one obstacle, and that step
-    dominates its pooled variance); requires CasADi (``pip install 'hwyeval[baselines]'``).
-    """
-    from controllers.two_loop.outer.ipopt import IpoptOuter, benchmark_outer
-    from controllers.two_loop.outer.params import CgmresParams, ipopt_params
-
-    if repeats < 1:
-        raise ValueError(f"repeats must be >= 1, got {repeats}")
-    cg = CgmresParams()
-    path = FrenetPath.cached(np.array([[0.0, 0.0], [4000.0, 0.0]]))
-
-    def make(name: str) -> Any:
-        if name == "cgmres":
-            return CgmresOuter(path, cg, n_slots)
-        outer = IpoptOuter(path, ipopt_params(cg, formulation=name.removeprefix("ipopt_")))
-        outer.prepare(1)
-        return outer
-
-    out: dict[str, Any] = {"repeats": repeats, "ipopt_options": {}}
-    for name in ("cgmres", "ipopt_barrier", "ipopt_hard"):
-        benchmark_outer(make(name), **scenario)  # warm-up, untimed
-        runs = []
-        entered = 0
-        for _ in range(repeats):
-            outer = make(name)
-            result = benchmark_outer(outer, **scenario)
-            runs.append(np.asarray(result["times_s"]))
-            entered = max(int(result["obstacle_entered_step"]), 0)
-            if isinstance(outer, IpoptOuter):
-                out["ipopt_options"] = {k: v for k, v in outer._warm_opts.items()
-                                        if k != "print_level"}
-        n = min(r.size for r in runs)
-        stacked = np.stack([r[:n] for r in runs])
-        best = stacked.min(axis=0)
-        out[name] = {"raw": _solver_stats(stacked.reshape(-1)),
-                     "min_of_repeats": _solver_stats(best),
-                     "obstacle_entered_update": entered}
-        if 0 < entered < n:
-            out[name]["min_of_repeats_without_obstacle"] = _solver_stats(best[:entered])
-            out[name]["min_of_repeats_with_obstacle"] = _solver_stats(best[entered:])
-    kinds = ("raw", "min_of_repeats", "min_of_repeats_without_obstacle",
-             "min_of_repeats_with_obstacle")
-    for name in ("ipopt_barrier", "ipopt_hard"):
-        out[f"{name}_over_cgmres"] = {
-            kind: {k: out[name][kind][k] / out["cgmres"][kind][k]
-                   for k in ("p50_s", "p99_s", "var_s2") if out["cgmres"][kind][k] > 0}
-            for kind in kinds if kind in out[name] and kind in out["cgmres"]}
-    return out
-
-
-def _solver_stats(times_s: np.ndarray) -> dict[str, float]:
-    t = np.asarray(times_s, dtype=np.float64)
-    return {"n": float(t.size), "p50_s": float(np.percentile(t, 50)),
-            "p99_s": float(np.percentile(t, 99)), "max_s": float(t.max()),
-            "var_s2": float(t.var())}

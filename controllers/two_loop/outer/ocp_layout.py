@@ -1,0 +1,98 @@
+"""The data layout of the outer loop's OCP (:mod:`controllers.two_loop.outer.ocp`).
+
+What the compiled kernels are given, packed into float arrays so that they are compiled
+once: the stage grid (``stage_fractions``: tau_i / T, (N+1,)), the per-update parameter
+vector (``pack_params``: (N_PACKED,), indices ``_P_*``), the obstacle slot table
+(``obstacle_table``: (K, OBS_COLS)) and the per-stage width of the unknowns U
+(``stage_width``: m = 2 + 2K).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controllers.two_loop.outer.params import OcpParams
+
+__all__ = ["N_PACKED", "OBS_COLS", "obstacle_table", "pack_params", "stage_fractions",
+           "stage_times", "stage_width"]
+
+# Indices into the packed parameter vector.
+_P_COST, _P_CY, _P_CYD, _P_CSD, _P_CTHD, _P_CTH, _P_CV, _P_CZ, _P_ZETA = range(9)
+_P_CYT, _P_CET, _P_VT, _P_SCALE = 9, 10, 11, 12
+_P_YREF, _P_YREFD = 13, 14  # lateral reference yr [m] and its rate [m/s] (C/GMRES only)
+_P_CYR = 15  # rate of Cy [1/(m² s²)] when the caller schedules it (C/GMRES only)
+N_PACKED = 16
+# Fast-math flags for the hot kernels: no 'nnan'/'ninf', so non-finite checks stay valid.
+_FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
+# Obstacle table columns: s, y, v_s, v_y, A, B, active, barrier weight w, dw/dt.
+OBS_COLS = 9
+
+
+def stage_width(n_slots: int) -> int:
+    """Unknowns per stage m = 2 + 2K (two inputs, a slack and a multiplier per slot)."""
+    return 2 + 2 * n_slots
+
+
+def stage_fractions(params: OcpParams) -> np.ndarray:
+    """tau_i / T, shape (N+1,), from 0 to 1 (uniform or Chebyshev)."""
+    i = np.arange(params.n_stages + 1, dtype=np.float64)
+    if params.chebyshev:
+        w = 0.5 * (1.0 - np.cos(i * np.pi / params.n_stages))
+    else:
+        w = i / params.n_stages
+    w[0], w[-1] = 0.0, 1.0
+    return w
+
+
+def stage_times(params: OcpParams, horizon_s: float | None = None) -> np.ndarray:
+    """Stage nodes tau_i [s], shape (N+1,), for the full (or a given) horizon."""
+    return stage_fractions(params) * (params.horizon_s if horizon_s is None else horizon_s)
+
+
+def pack_params(params: OcpParams, target_speed_mps: float,
+                lateral_reference_m: float = 0.0, lateral_reference_rate_mps: float = 0.0,
+                lateral_weight: float | None = None, lateral_weight_rate: float = 0.0,
+                row_scaling: bool = False) -> np.ndarray:
+    """Packed float vector (N_PACKED,) for the compiled kernels (per-update data included).
+
+    target_speed_mps: Vt [m/s]; lateral_reference_m: yr [m] in Cy (y - yr)² and
+    CyT (y_N - yr)²; lateral_weight: Cy [1/(m² s)] of this update (None: params.c_y;
+    a caller may schedule it); the rates yr' [m/s] and Cy' [1/(m² s²)] are used by
+    :func:`controllers.two_loop.outer.cgmres.cgmres_updates` to move yr and Cy across a
+    control period (ignored by the residual itself); row_scaling: the residual returns
+    D(U) F (a C/GMRES device, see :func:`ocp_residual`).
+    """
+    out = np.zeros(N_PACKED)
+    out[_P_COST] = params.cost_id
+    out[_P_CY] = params.c_y if lateral_weight is None else lateral_weight
+    out[_P_CYD] = params.c_ydot
+    out[_P_CSD] = params.c_sdot
+    out[_P_CTHD] = params.c_thetadot
+    out[_P_CTH] = params.c_theta
+    out[_P_CV] = params.c_v
+    out[_P_CZ] = params.c_z
+    out[_P_ZETA] = params.zeta
+    out[_P_CYT] = params.c_y_terminal
+    out[_P_CET] = params.c_e_terminal
+    out[_P_VT] = target_speed_mps
+    out[_P_SCALE] = 1.0 if row_scaling else 0.0
+    out[_P_YREF] = lateral_reference_m
+    out[_P_YREFD] = lateral_reference_rate_mps
+    out[_P_CYR] = lateral_weight_rate
+    return out
+
+
+def obstacle_table(n_slots: int) -> np.ndarray:
+    """Empty obstacle table (K, 9).
+
+    Columns: s, y [m] and v_s, v_y [m/s] at the table's time stamp, A, B [m],
+    active (0/1), barrier weight w in [0, 1] at the time stamp, dw/dt [1/s].
+    Slot j's barrier weight at update time t is Cz clip(w + dw/dt (t - t_stamp), 0, 1):
+    obstacles fade in and out of the problem instead of switching (see
+    ``controllers.two_loop.outer.cgmres``); the fade enters F_t like the obstacle's motion.
+    """
+    tab = np.zeros((n_slots, OBS_COLS))
+    tab[:, 4] = 1.0
+    tab[:, 5] = 1.0
+    tab[:, 7] = 1.0
+    return tab
