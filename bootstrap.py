@@ -58,6 +58,24 @@ def ensure_example_plugin() -> None:
     sh([str(PY), "-m", "pip", "install", "-q", "--no-deps", "-e", str(EXAMPLE_PLUGIN)], cwd=ROOT)
 
 
+COMMONROAD_PACKAGES = ("commonroad-io>=2024.1", "commonroad-vehicle-models>=2")
+# commonroad-io's requirements except its protobuf==3.20.2 pin (the cluster extra's ray
+# needs protobuf >= 5; the importer reads XML only: docs/recorded.md).
+COMMONROAD_REQUIREMENTS = ("iso3166", "lxml", "networkx", "omegaconf", "rtree",
+                           "shapely>=2,<3", "matplotlib", "pillow", "tqdm")
+
+
+def ensure_commonroad() -> None:
+    """Install the CommonRoad importer's commonroad-io into the venv with ``--no-deps``
+    (beside the cluster extra's protobuf) plus its other requirements; skipped when its
+    XML reader already imports."""
+    probe = "from commonroad.common.reader.file_reader_xml import XMLFileReader"
+    if subprocess.run([str(PY), "-c", probe], capture_output=True).returncode == 0:
+        return
+    sh([str(PY), "-m", "pip", "install", "-q", *COMMONROAD_REQUIREMENTS])
+    sh([str(PY), "-m", "pip", "install", "-q", "--no-deps", *COMMONROAD_PACKAGES])
+
+
 def ensure_chromium() -> None:
     if shutil.which("chromium") and shutil.which("chromedriver"):
         return
@@ -87,6 +105,7 @@ def main(argv: list[str]) -> int:
     if action == "test":
         ensure_venv("test,baselines,cluster")
         ensure_example_plugin()
+        ensure_commonroad()
         ensure_chromium()
         # Architecture, lint and types first (seconds), then the tests; all of them run
         # whatever the others say, and any failure fails the command.

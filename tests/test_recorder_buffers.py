@@ -106,14 +106,16 @@ def test_the_neighbour_kernel_selects_as_numpy_does() -> None:
         f = [rng.normal(size=n) for _ in range(4)]
         lane = rng.integers(-1, 4, n)
         stalled = rng.random(n) < 0.5
+        agent = rng.integers(0, 3, n).astype(np.int8)
         a = int(rng.integers(0, 5))
         out_f = [np.full(a + n, np.nan) for _ in range(7)]
         out_i = [np.full(a + n, -9, dtype=np.int64) for _ in range(2)]
         out_b = np.zeros(a + n, dtype=np.bool_)
+        out_g = np.zeros(a + n, dtype=np.int8)
         picked = np.empty(n, dtype=np.int64)
-        got = _append_within(3, 0.06, ex, ey, r * r, x, y, *f, lane, stalled, a, out_i[0],
-                             out_f[0], out_f[1], out_f[2], out_f[3], out_f[4], out_f[5],
-                             out_f[6], out_i[1], out_b, picked)
+        got = _append_within(3, 0.06, ex, ey, r * r, x, y, *f, lane, stalled, agent, a,
+                             out_i[0], out_f[0], out_f[1], out_f[2], out_f[3], out_f[4],
+                             out_f[5], out_f[6], out_i[1], out_b, out_g, picked)
         dx, dy = x - ex, y - ey
         idx = np.flatnonzero(dx * dx + dy * dy <= r * r)
         assert got == idx.size
@@ -124,6 +126,7 @@ def test_the_neighbour_kernel_selects_as_numpy_does() -> None:
             np.testing.assert_array_equal(column[rows], source[idx])
         np.testing.assert_array_equal(out_i[1][rows], lane[idx])
         np.testing.assert_array_equal(out_b[rows], stalled[idx])
+        np.testing.assert_array_equal(out_g[rows], agent[idx])
         assert np.all(np.isnan(out_f[1][:a])) and np.all(np.isnan(out_f[1][a + got:]))
 
 

@@ -22,6 +22,11 @@ import numpy.typing as npt
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
+Int8Array = npt.NDArray[np.int8]
+
+
+def _no_agents() -> Int8Array:
+    return np.zeros(0, dtype=np.int8)
 
 SIDE_NONE = 0
 SIDE_LEFT = 1
@@ -50,7 +55,9 @@ class Traffic:
     x_m, y_m: box centre [m]; heading_rad; speed_mps along the heading; length_m,
     width_m: box size [m]; lane_index: lane index on its road (0 = rightmost, -1
     unknown); road_id: the road (edge) it is on ('' unknown); stalled: a stalled
-    vehicle of the scenario (never moves).
+    vehicle of the scenario (never moves); agent: what moves it (0 = the simulator's
+    traffic or a scripted actor, 1 = replayed from a recording, 2 = a recorded vehicle
+    handed over to the simulator's driver; all 0 when not given).
     """
 
     ids: tuple[str, ...]
@@ -63,11 +70,14 @@ class Traffic:
     lane_index: IntArray
     road_id: tuple[str, ...]
     stalled: BoolArray
+    agent: Int8Array = field(default_factory=_no_agents)
 
     def __post_init__(self) -> None:
         n = len(self.ids)
+        if n and np.shape(self.agent) == (0,):
+            object.__setattr__(self, "agent", np.zeros(n, dtype=np.int8))
         for name in ("x_m", "y_m", "heading_rad", "speed_mps", "length_m", "width_m",
-                     "lane_index", "stalled"):
+                     "lane_index", "stalled", "agent"):
             if np.shape(getattr(self, name)) != (n,):
                 raise ValueError(f"Traffic.{name} must have shape ({n},), "
                                  f"got {np.shape(getattr(self, name))}")
@@ -90,7 +100,8 @@ class Traffic:
         return Traffic(tuple(self.ids[i] for i in idx), self.x_m[idx], self.y_m[idx],
                        self.heading_rad[idx], self.speed_mps[idx], self.length_m[idx],
                        self.width_m[idx], self.lane_index[idx],
-                       tuple(self.road_id[i] for i in idx), self.stalled[idx])
+                       tuple(self.road_id[i] for i in idx), self.stalled[idx],
+                       self.agent[idx])
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,7 @@
 """Bird's-eye SVG of one run: lanes, other vehicles' paths, stalled cars, the obstacle
 ellipses the controller saw, the ego path coloured by speed and the failure marks.
+Recorded vehicles (scenario ``replay``) have their own colours by the neighbours'
+``agent``: replayed teal, reactive (handed over to SUMO) violet, with legend entries.
 
 The view is the run's bounding box in a frame along the mean of the start and end
 headings (the chord of an arc; exactly the road direction for a lane change on a
@@ -18,7 +20,14 @@ import numpy as np
 from reports.geometry import box_corners, ego_box_corners
 from reports.html.charts import esc, fmt
 from reports.html.marks import Mark
-from reports.record import RunRecord, Verdict
+from reports.record import (
+    AGENT_NAMES,
+    AGENT_REACTIVE,
+    AGENT_REPLAYED,
+    AGENT_SUMO,
+    RunRecord,
+    Verdict,
+)
 
 VIRIDIS = ("#440154", "#414487", "#2a788e", "#22a884", "#7ad151", "#fde725")
 ZOOM_HALF_LENGTH_M = 40.0
@@ -180,7 +189,17 @@ def _lanes(rec: RunRecord, v: _View) -> list[str]:
     return out
 
 
+# Recorded vehicles (neighbours' ``agent``): replayed from the recording, or handed over
+# to SUMO's driver (reactive replay); their paths and boxes have these colours.
+C_AGENT = {AGENT_SUMO: "#475569", AGENT_REPLAYED: "#0d9488", AGENT_REACTIVE: "#9333ea"}
+AGENT_LEGEND = {AGENT_REPLAYED: ("replayed car (recording)", C_AGENT[AGENT_REPLAYED], "box"),
+                AGENT_REACTIVE: ("reactive car (handed over to SUMO)", C_AGENT[AGENT_REACTIVE],
+                                 "box")}
+
+
 def _neighbour_paths(rec: RunRecord, v: _View) -> list[str]:
+    """Each moving neighbour's path, in the colour of its agent kind (the highest it
+    had: a handed-over car is drawn as reactive)."""
     nb = rec.neighbours
     moving = nb.take(~nb.stalled)
     out: list[str] = []
@@ -195,9 +214,13 @@ def _neighbour_paths(rec: RunRecord, v: _View) -> list[str]:
         if gx.size > 16:
             k = np.unique(np.linspace(0, gx.size - 1, 16).astype(int))
             gx, gy = gx[k], gy[k]
-        out.append(f'<polyline points="{v.pts(gx, gy)}" fill="none" stroke="#334155" '
-                   f'stroke-opacity="0.35" stroke-width="1.2"><title>{esc(vid)}</title>'
-                   "</polyline>")
+        agent = int(moving.agent[mine].max()) if mine.any() else AGENT_SUMO
+        colour, opacity = ("#334155", "0.35") if agent == AGENT_SUMO else (
+            C_AGENT.get(agent, "#334155"), "0.6")
+        kind = f" ({AGENT_NAMES[agent]})" if agent in AGENT_LEGEND else ""
+        out.append(f'<polyline points="{v.pts(gx, gy)}" fill="none" stroke="{colour}" '
+                   f'stroke-opacity="{opacity}" stroke-width="1.2"><title>{esc(vid)}{kind}'
+                   "</title></polyline>")
     return out
 
 
@@ -243,7 +266,8 @@ def _focus_boxes(rec: RunRecord, v: _View, corners: np.ndarray) -> list[str]:
     for i in range(len(now)):
         nc = box_corners(now.x_m[i], now.y_m[i], now.heading_rad[i], now.length_m[i],
                          now.width_m[i])
-        colour = "#b91c1c" if bool(now.stalled[i]) else "#475569"
+        colour = "#b91c1c" if bool(now.stalled[i]) else C_AGENT.get(int(now.agent[i]),
+                                                                      "#475569")
         out.append(f'<polygon points="{v.pts(nc[:, 0], nc[:, 1])}" fill="{colour}" '
                    f'fill-opacity="0.55" stroke="{colour}"><title>{esc(now.id[i])} '
                    f'{fmt(float(now.speed_mps[i]), 3)} m/s</title></polygon>')
@@ -353,7 +377,7 @@ def birdseye_svg(rec: RunRecord | None, verdict: Verdict | None, marks: list[Mar
     out.append(f'<text x="{width - 10}" y="{v.height - 10}" class="tick" text-anchor="end">'
                f"{esc(note)} · speed {fmt(v0, 3)}–{fmt(v1, 3)} m/s (dark→light)</text>")
     # the legend once a page (the whole-run view); the zoom below it has the same glyphs
-    out += _scale_bar(v) + (_glyph_legend(v) if zoom is None else [])
+    out += _scale_bar(v) + (_glyph_legend(v, rec) if zoom is None else [])
     out.append("</svg>")
     return "".join(out)
 
@@ -384,10 +408,13 @@ LEGEND = (("ego path (speed: dark slow, light fast)", "#440154", "line"),
           ("start", "#16a34a", "dot"), ("end", "#111827", "square"))
 
 
-def _glyph_legend(v: _View) -> list[str]:
+def _glyph_legend(v: _View, rec: RunRecord | None = None) -> list[str]:
     """What each glyph means, in one line of text along the top edge (a coloured
-    symbol before each label: one element, a page per run stays small)."""
+    symbol before each label: one element, a page per run stays small); the recorded
+    vehicles' entries only when the run has such vehicles."""
     symbol = {"line": "━", "box": "■", "dash": "▭", "dot": "●", "square": "▪"}
+    agents = set(np.unique(rec.neighbours.agent).tolist()) if rec is not None else set()
+    entries = [*LEGEND, *(AGENT_LEGEND[a] for a in sorted(agents) if a in AGENT_LEGEND)]
     parts = "".join(f'<tspan fill="{colour}">{symbol[kind]}</tspan> {esc(label)}   '
-                    for label, colour, kind in LEGEND)
+                    for label, colour, kind in entries)
     return [f'<text x="{v.pad + 4}" y="14" class="tick" xml:space="preserve">{parts}</text>']

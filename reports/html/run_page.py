@@ -6,7 +6,10 @@ with value vs limit and where, ``id="failures"``), the error text of an error ru
 collisions on which SUMO's report and the 2-D boxes disagree
 (``id="collision-disagreements"``, when there are any), the metrics table (units,
 limits), the bird's-eye views (whole run and zoomed at the first failure or the closest
-approach) and the time series (:mod:`reports.html.runs`).
+approach) and the time series (:mod:`reports.html.runs`). A run with recorded traffic
+has a line ``id="replay"`` after the failures: its tracks file and mode, how many
+recorded vehicles it had, how many of them were handed over to SUMO (reactive) and when
+the first was, and the collisions of replayed cars driving into the ego (not at fault).
 """
 
 from __future__ import annotations
@@ -45,6 +48,23 @@ def _failures(run: RunEntry) -> str:
             f"{err}</section>")
 
 
+def replay_line(run: RunEntry) -> str:
+    """The recorded-traffic line of a run page ('' without recorded traffic)."""
+    rec = run.record
+    rp = rec.outcome.replay if rec is not None else None
+    if rp is None:
+        return ""
+    hand = rp.handovers
+    first = f" (first at t = {fmt(hand[0].t_s, 3)} s, {esc(hand[0].track_id)})" if hand else ""
+    into = run.verdict.metric("collisions_replayed_into_ego") if run.verdict is not None \
+        else None
+    hits = (f" · {fmt(into.value)} collision(s) of replayed cars driving into the ego "
+            "(not at fault)") if into is not None and into.value and into.value > 0 else ""
+    return (f'<p id="replay" class="meta">recorded traffic <code>{esc(rp.tracks)}</code>, '
+            f"mode {esc(rp.mode)}: {rp.vehicles} recorded vehicle(s), "
+            f"{len(hand)} handed over to SUMO{first}{hits}</p>")
+
+
 def render_run_page(run: RunEntry, links: Links, index_title: str) -> str:
     """The page of one run (module doc)."""
     marks = failure_marks(run)
@@ -71,6 +91,6 @@ def render_run_page(run: RunEntry, links: Links, index_title: str) -> str:
         f"{esc(index_title)}</a> · {log_link(run, links, from_page=True)} · "
         f"<a href=\"{esc(run_dir)}\">run directory</a> · <code>hwyeval view "
         f"{esc(run.run_dir.parent.name)}/{esc(run.run_dir.name)}</code></nav></header><main>",
-        _failures(run), collision_disagreements(run), mark_line, "".join(views),
+        _failures(run), replay_line(run), collision_disagreements(run), mark_line, "".join(views),
         time_series(run, marks), metrics_table(run),
         "</main></body></html>"])

@@ -41,6 +41,14 @@ the row before it, the last sample before the boxes touched)
     ``active_lateral``   otherwise;
     ``unclassified``     a monitor contact with a vehicle that is not among the row's
                          recorded neighbours (or none is named).
+    ``replayed_into_ego`` (hwyeval's, not nuPlan's; tested after the above) the other
+                         vehicle is replayed from a recording at that row (neighbours'
+                         ``agent`` = 1: not handed over to a driver, blind to the ego)
+                         and drives into the ego: the class above is ``stopped_ego``, or
+                         the other's front edge intersects the ego box (for a swept
+                         contact: is the part of it nearest the ego box). A recording
+                         cannot yield to an ego that drives differently from its
+                         recorded driver (docs/replay.md).
 
 At fault (nuPlan: could have been prevented by the planner)
     ``active_front`` and ``stopped_track`` always; ``active_lateral`` when the ego is not
@@ -48,7 +56,7 @@ At fault (nuPlan: could have been prevented by the planner)
     corners in one lane or in a lane and its continuation, on ``road.lanes`` with the
     internal junction lanes; a corner off every lane counts as not within one lane);
     ``unclassified`` too (conservative: what cannot be judged is not excused);
-    ``stopped_ego`` and ``active_rear`` never.
+    ``stopped_ego``, ``active_rear`` and ``replayed_into_ego`` never.
 
 SUMO's report (``outcome.sumo_collisions``, times on SUMO's clock: the trace time is
 ``t_s - outcome.sumo_t_origin_s``) stands beside the geometry, never in its place
@@ -95,7 +103,7 @@ from reports.geometry import box_corners, box_distance, boxes_overlap, swept_box
 from reports.metrics.context import RunContext
 from reports.metrics.lane_occupancy import LaneTopology
 from reports.metrics.values import Measured, measured
-from reports.record import NeighbourColumns, SumoCollision
+from reports.record import AGENT_REPLAYED, NeighbourColumns, SumoCollision
 from reports.record.columns import BoolColumn, IntColumn
 from reports.record.verdict import GEOMETRY_ONLY, SUMO_ONLY, CollisionDisagreement
 
@@ -113,7 +121,8 @@ EVIDENCE = (OVERLAP, SWEPT, MONITOR)
 
 
 class CollisionClass(StrEnum):
-    """nuPlan's CollisionType, plus what a record cannot classify."""
+    """nuPlan's CollisionType, plus what a record cannot classify and a replayed
+    (recorded, blind) vehicle driving into the ego."""
 
     STOPPED_EGO = "stopped_ego"
     STOPPED_TRACK = "stopped_track"
@@ -121,6 +130,7 @@ class CollisionClass(StrEnum):
     ACTIVE_FRONT = "active_front"
     ACTIVE_LATERAL = "active_lateral"
     UNCLASSIFIED = "unclassified"
+    REPLAYED_INTO_EGO = "replayed_into_ego"
 
 
 @dataclass(frozen=True)
@@ -509,6 +519,22 @@ def _kind(ctx: RunContext, row: int, nb: NeighbourColumns, k: int, evidence: str
     return CollisionClass.ACTIVE_FRONT if front else CollisionClass.ACTIVE_LATERAL
 
 
+def _replayed_into_ego(ctx: RunContext, row: int, nb: NeighbourColumns, k: int,
+                       evidence: str, kind: CollisionClass) -> bool:
+    """Whether neighbour row ``k`` is a replayed vehicle driving into the ego at trace
+    row ``row`` (module doc: ``replayed_into_ego``)."""
+    if k < 0 or int(nb.agent[k]) != AGENT_REPLAYED or kind == CollisionClass.UNCLASSIFIED:
+        return False
+    if kind == CollisionClass.STOPPED_EGO:
+        return True
+    corners = ctx.corners_m[row]
+    other = box_corners(nb.x_m[k], nb.y_m[k], nb.heading_rad[k], nb.length_m[k], nb.width_m[k])
+    if evidence == OVERLAP:
+        return segment_hits_box(other[0], other[3], corners)
+    return segment_box_distance_m(other[0], other[3], corners) <= float(
+        box_distance(corners, other)) + 1e-6
+
+
 def _at_fault(kind: CollisionClass, within_one_lane: bool) -> bool:
     if kind in (CollisionClass.ACTIVE_FRONT, CollisionClass.STOPPED_TRACK,
                 CollisionClass.UNCLASSIFIED):
@@ -533,6 +559,8 @@ def _event(ctx: RunContext, c: _Contact, nc: _NeighbourContacts, topology: LaneT
         row -= 1
         k = _nb_index(nc.rows, np.asarray(nb.id, dtype=object), row, c.other_id)
     kind = _kind(ctx, row, nb, k, c.evidence)
+    if _replayed_into_ego(ctx, row, nb, k, c.evidence, kind):
+        kind = CollisionClass.REPLAYED_INTO_EGO
     within = topology.within_one_lane(ctx.corners_m[row])
     agreeing = [s for s in sumo if _agree(c, s, ctx.t_s)]
     first = agreeing[0] if agreeing else None

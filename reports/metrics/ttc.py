@@ -12,6 +12,13 @@ A pair counts only while the ego moves (speed ≥ ``TTC_MIN_EGO_SPEED_MPS`` = 0.
 waiting behind a stopped car is no conflict). It counts *ahead* when the neighbour's
 box centre is not behind the ego's (projection on the ego heading ≥ 0: conflicts the
 ego drives into), else *behind* (being caught up by faster traffic).
+
+A car replayed from a recording (``agent`` = replayed, not handed over) is blind to the
+ego: it counts ahead only while its whole box lies ahead of the ego's front (the
+rearmost corner's projection on the ego heading beyond the ego's foremost corner's).
+Otherwise it counts behind: a recorded car that drives into the ego from behind or from
+the side, or on through it, is nothing the ego's braking could prevent, and the
+collision judgement classes such contacts ``replayed_into_ego`` (not at fault).
 """
 
 from __future__ import annotations
@@ -23,7 +30,7 @@ import numpy as np
 from reports import geometry
 from reports.geometry import box_corners
 from reports.metrics.context import RunContext
-from reports.record.columns import BoolColumn, FloatColumn, IntColumn
+from reports.record.columns import AGENT_REPLAYED, BoolColumn, FloatColumn, IntColumn
 
 TTC_HORIZON_S = 10.0
 TTC_MIN_EGO_SPEED_MPS = 0.5
@@ -33,10 +40,10 @@ def swept_box_ttc(corners_a: np.ndarray, vel_a: np.ndarray, corners_b: np.ndarra
                   vel_b: np.ndarray, horizon_s: float = TTC_HORIZON_S) -> FloatColumn:
     """Time until boxes A and B first touch when translating at constant velocity [s].
 
-    corners_*: (..., 4, 2) as from :func:`reports.metrics.geometry.box_corners`;
+    corners_*: (..., 4, 2) as from :func:`reports.geometry.box_corners`;
     vel_*: (..., 2) [m/s]. 0 if they overlap now, +inf if they never touch within
     ``horizon_s``. The compiled swept separating-axis test of
-    :func:`reports.metrics.geometry.swept_box_ttc`, with this module's horizon.
+    :func:`reports.geometry.swept_box_ttc`, with this module's horizon.
     """
     out: FloatColumn = geometry.swept_box_ttc(corners_a, vel_a, corners_b, vel_b, horizon_s)
     return out
@@ -84,9 +91,27 @@ def ttc_pairs(ctx: RunContext, horizon_s: float = TTC_HORIZON_S) -> TtcPairs:
     finite_pose = (np.isfinite(nbv.x_m) & np.isfinite(nbv.y_m) & np.isfinite(cx[rows])
                    & np.isfinite(cy[rows]))
     ttc = np.where(finite_pose, ttc, np.inf)
-    ahead = (nbv.x_m - cx[rows]) * np.cos(psi[rows]) + (nbv.y_m - cy[rows]) * np.sin(psi[rows])
-    return TtcPairs(row=rows.astype(np.int64), ttc_s=ttc, ahead=ahead >= 0.0,
+    hx, hy = np.cos(psi[rows]), np.sin(psi[rows])
+    ahead = (nbv.x_m - cx[rows]) * hx + (nbv.y_m - cy[rows]) * hy >= 0.0
+    replayed = nbv.agent == AGENT_REPLAYED
+    if np.any(replayed):
+        ahead = np.where(replayed, ahead & _wholly_ahead(ctx.corners_m[rows], nb_corners,
+                                                         hx, hy), ahead)
+    return TtcPairs(row=rows.astype(np.int64), ttc_s=ttc, ahead=ahead,
                     ego_moving=speed[rows] >= TTC_MIN_EGO_SPEED_MPS)
+
+
+def _wholly_ahead(ego_corners: np.ndarray, nb_corners: np.ndarray, hx: FloatColumn,
+                  hy: FloatColumn) -> BoolColumn:
+    """(P,) whether the neighbour's box (P, 4, 2) lies wholly ahead of the ego's box
+    (P, 4, 2) along the ego heading (hx, hy) (P,): its rearmost corner beyond the ego's
+    foremost one."""
+    ego_front = np.max(ego_corners[..., 0] * hx[:, None] + ego_corners[..., 1] * hy[:, None],
+                       axis=1)
+    nb_rear = np.min(nb_corners[..., 0] * hx[:, None] + nb_corners[..., 1] * hy[:, None],
+                     axis=1)
+    out: BoolColumn = nb_rear >= ego_front
+    return out
 
 
 def ttc_series(ctx: RunContext, pairs: TtcPairs, ahead: bool) -> FloatColumn:

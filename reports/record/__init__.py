@@ -6,6 +6,10 @@ This package imports nothing of hwyeval.
 
 from reports.record.codec import RecordError
 from reports.record.columns import (
+    AGENT_NAMES,
+    AGENT_REACTIVE,
+    AGENT_REPLAYED,
+    AGENT_SUMO,
     ControllerColumns,
     DecisionColumns,
     EgoColumns,
@@ -17,6 +21,8 @@ from reports.record.columns import (
 )
 from reports.record.meta import (
     EgoBox,
+    ReplayHandover,
+    ReplaySummary,
     RunInfo,
     RunOutcome,
     SsmSummary,
@@ -45,10 +51,12 @@ from reports.record.run import (
 from reports.record.verdict import Failure, MetricValue, Verdict
 
 __all__ = [
-    "CONTROLLER_ARRAYS", "NEIGHBOURS", "ROAD_JSON", "RRD", "RUN_FILES", "RUN_JSON", "SERIES",
+    "AGENT_NAMES", "AGENT_REACTIVE", "AGENT_REPLAYED", "AGENT_SUMO", "CONTROLLER_ARRAYS",
+    "NEIGHBOURS", "ROAD_JSON", "RRD", "RUN_FILES", "RUN_JSON", "SERIES",
     "TRACE", "TRACEBACK", "ControllerArrays", "ControllerColumns", "DecisionColumns", "EgoBox",
     "EgoColumns", "Failure", "LaneRecord", "MetricValue", "NeighbourColumns", "RecordError",
-    "RoadRecord", "RunInfo", "RunOutcome", "RunRecord", "SafetyColumns", "SeriesColumns",
+    "ReplayHandover", "ReplaySummary", "RoadRecord", "RunInfo", "RunOutcome", "RunRecord",
+    "SafetyColumns", "SeriesColumns",
     "SsmSummary", "StalledVehicle", "SumoCollision", "TimingColumns", "Trace", "Verdict",
     "incomplete_files", "iter_run_dirs", "load_run", "write_run", "write_run_json",
 ]

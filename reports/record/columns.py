@@ -8,7 +8,8 @@ reader returns, so a column the writer forgets or a consumer misspells is an
 attribute error, not a silently missing key.
 
 Field kinds: ``FloatColumn`` (float64, NaN = not available), ``IntColumn`` (int64),
-``BoolColumn`` (bool) and ``TextColumn`` (object array of str).
+``BoolColumn`` (bool), ``AgentColumn`` (int8, 0 when absent: :data:`AGENT_SUMO`) and
+``TextColumn`` (object array of str).
 """
 
 from __future__ import annotations
@@ -29,11 +30,21 @@ FloatColumn = npt.NDArray[np.float64]
 IntColumn = npt.NDArray[np.int64]
 BoolColumn = npt.NDArray[np.bool_]
 TextColumn = npt.NDArray[np.object_]
+AgentColumn = npt.NDArray[np.int8]
+
+# What moves a neighbour (NeighbourColumns.agent): the simulator's traffic or a scripted
+# actor, a vehicle replayed from a recording, a recorded vehicle handed over to the
+# simulator's driver (reactive replay, suite.world.replay).
+AGENT_SUMO = 0
+AGENT_REPLAYED = 1
+AGENT_REACTIVE = 2
+AGENT_NAMES = {AGENT_SUMO: "sumo", AGENT_REPLAYED: "replayed", AGENT_REACTIVE: "reactive"}
 
 G = TypeVar("G", bound="ColumnGroup")
 
 _KINDS = {"FloatColumn": (np.float64, math.nan), "IntColumn": (np.int64, -1),
-          "BoolColumn": (np.bool_, False), "TextColumn": (np.object_, "")}
+          "BoolColumn": (np.bool_, False), "TextColumn": (np.object_, ""),
+          "AgentColumn": (np.int8, AGENT_SUMO)}
 
 
 def col(unit: str, doc: str) -> Any:
@@ -113,8 +124,8 @@ def _coerce(values: np.ndarray, dtype: Any, fill: Any) -> np.ndarray:
         flags: np.ndarray = numeric.astype(np.float64) != 0.0
         return flags
     numeric = pd.to_numeric(pd.Series(values), errors="coerce").to_numpy(dtype=np.float64)
-    if dtype is np.int64:
-        return np.where(np.isfinite(numeric), numeric, fill).astype(np.int64)
+    if dtype is np.int64 or dtype is np.int8:
+        return np.where(np.isfinite(numeric), numeric, fill).astype(dtype)
     return numeric.astype(np.float64)
 
 
@@ -295,6 +306,8 @@ class NeighbourColumns(ColumnGroup):
     width_m: FloatColumn = col("m", "box width")
     lane_index: IntColumn = col("-", "SUMO lane index")
     stalled: BoolColumn = col("-", "a stalled vehicle of the scenario")
+    agent: AgentColumn = col("-", "what moves it: 0 SUMO traffic or actor, 1 replayed from "
+                             "a recording, 2 recorded and handed over to SUMO (reactive)")
 
     def to_frame(self) -> pd.DataFrame:
         import pandas as pd

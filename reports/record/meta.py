@@ -88,6 +88,28 @@ class SsmSummary:
 
 
 @dataclass(frozen=True)
+class ReplayHandover:
+    """A recorded vehicle handed over to SUMO's driver (reactive replay): its id
+    (``rec_<id>``) and the run time [s] of its last replayed pose; SUMO drives it from
+    the next SUMO step on."""
+
+    track_id: str
+    t_s: float
+
+
+@dataclass(frozen=True)
+class ReplaySummary:
+    """The run's recorded traffic (docs/replay.md): the tracks file as the catalog names
+    it, the mode (``"replay"``/``"reactive"``), how many recorded vehicles were in the
+    simulation (``vehicles``) and every handover, in time order."""
+
+    tracks: str = ""
+    mode: str = ""
+    vehicles: int = 0
+    handovers: tuple[ReplayHandover, ...] = ()
+
+
+@dataclass(frozen=True)
 class FileDigest:
     """A file of a run directory as run.json lists it when written: ``name`` (in the
     run directory), ``size_bytes`` and ``sha256`` (hex) of its content. A directory
@@ -125,6 +147,7 @@ class RunOutcome:
     ssm: SsmSummary = field(default_factory=SsmSummary)
     log_s: float = math.nan
     log_error: str | None = None
+    replay: ReplaySummary | None = None  # recorded traffic; None: the run had none
 
     def __post_init__(self) -> None:
         if self.end not in (END_OK, "error", "timeout"):

@@ -20,6 +20,7 @@ This file format is a public contract. A catalog looks like::
     actors = [ { id = "cutter", lane = 2, pos_m = 120.0, speed_mps = 22.0,
                  events = [ { t_s = 3.0, lane_change = -1 } ] } ]  # optional, scripted
     controller = { name = "lane_keep" }              # a table may carry options
+    replay = { tracks = "s.tracks.parquet", mode = "replay" }  # optional, recorded traffic
     [scenario.sweep]                # optional: cartesian product, one scenario per combination
     "stalled.0.pos_m" = [300.0, 500.0]
     "traffic.vehicles_per_hour" = [0, 2000]
@@ -59,6 +60,21 @@ Keys of a scenario (all may also appear in ``[defaults]`` except ``name`` and ``
                     maximum speed [m/s] > 0; default: the lanes' limits). A Poisson flow
                     enters at ``edge``, joins the route and follows it to its end; cars
                     are also spread over the ramp at t = 0. Default: none.
+``replay``          table, recorded traffic around the ego (:mod:`suite.world.replay`,
+                    docs/replay.md): ``tracks`` (required: a tracks file,
+                    :mod:`suite.catalog.tracks`, relative to this file; read and checked
+                    at load, a missing or bad file is an issue at ``replay.tracks``),
+                    ``mode`` (``"replay"``: every recorded vehicle follows its recording,
+                    blind to the ego; ``"reactive"``: a recorded vehicle hands over to
+                    SUMO's car-following driver for good once its time gap behind the
+                    ego, gap / its speed, is below ``handover_time_gap_s`` with the ego
+                    in its lane or about to be, or whenever it is behind the ego in the
+                    ego's lane; default ``"replay"``), ``handover_time_gap_s`` (> 0,
+                    default 1.0 s), ``lane_changes`` (a handed-over vehicle's lane changes:
+                    ``"none"``, ``"strategic"`` only to keep its route (default) or
+                    ``"all"``, SUMO's). Recorded vehicles' SUMO ids are their track ids
+                    ``rec_<id>``. ``stalled``, ``actors`` and ``traffic`` may be added
+                    beside it. Default: none.
 ``controller``      required (usually from ``[defaults]``): a name, or a table with ``name``
                     and the controller's options.
 ``duration_s``      required, > 0.         ``step_s``: required, <= ``duration_s``, at least
@@ -164,6 +180,7 @@ from suite.catalog.specs import (
     ControllerSpec,
     EgoSpec,
     RampTrafficSpec,
+    ReplaySpec,
     Scenario,
     StalledSpec,
     TrafficSpec,
@@ -180,6 +197,7 @@ __all__ = [
     "EgoSpec",
     "FrozenMap",
     "RampTrafficSpec",
+    "ReplaySpec",
     "Scenario",
     "SpecError",
     "StalledSpec",

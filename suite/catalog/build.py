@@ -3,7 +3,8 @@ field and, if it has no problem, built into a :class:`Scenario`.
 
 Every problem is reported through a :class:`~suite.catalog.report.Report`, in a fixed
 order: scalars, criteria, controller, net, route, ego, stalled, traffic, ramp traffic,
-actors, then the placements and the traffic on the network (only if the net and route are
+actors, replay (its tracks file read and checked: :func:`suite.catalog.tracks.read_tracks`),
+then the placements and the traffic on the network (only if the net and route are
 usable).
 """
 
@@ -23,17 +24,23 @@ from suite.catalog.specs import (
     ActorSpec,
     EgoSpec,
     RampTrafficSpec,
+    ReplaySpec,
     Scenario,
     StalledSpec,
     TrafficSpec,
     sumo_step_problem,
 )
+from suite.catalog.tracks import TracksError, read_tracks
 from suite.catalog.traffic_checks import check_traffic
 
 __all__ = ["build_variant"]
 
 _Spec = TypeVar("_Spec", EgoSpec, StalledSpec, TrafficSpec, RampTrafficSpec, ActorSpec,
-                ActorEventSpec)
+                ActorEventSpec, ReplaySpec)
+
+# resolved tracks file -> (size, mtime_ns, problem or None): a catalog whose sweep expands
+# one scenario many times reads its tracks file once
+_TRACKS_CHECKED: dict[Path, tuple[int, int, TracksError | None]] = {}
 
 # Scalar keys of a scenario and their defaults (MISSING: required).
 _SCALARS: tuple[tuple[str, Any], ...] = (
@@ -59,6 +66,7 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
     ramps = _ramps(d.get("ramp_traffic", []), report)
     actors_raw = d.get("actors", [])
     actors = _actors(actors_raw, report)
+    replay = _replay(d.get("replay", MISSING), catalog_path, report)
     if network is not None and route is not None:
         check_placements(network, route, d.get("ego"), stalled_raw, traffic,
                          bool(scalars.get("allow_shoulder", False)), report,
@@ -82,7 +90,7 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
             timeout_s=scalars["timeout_s"], friction=scalars["friction"],
             ramp_traffic=tuple(r for r in ramps if r is not None),
             actors=tuple(a for a in actors if a is not None),
-            sumo_step_s=scalars.get("sumo_step_s"))
+            sumo_step_s=scalars.get("sumo_step_s"), replay=replay)
     except SpecError as exc:  # pragma: no cover - the checks above mirror these
         report.add(exc.field, exc.expected, exc.got)
         return None
@@ -186,6 +194,46 @@ def _actors(raw: Any, report: Report) -> list[ActorSpec | None]:
         seen.add(actor.id)
         out.append(actor)
     return out
+
+
+def _replay(raw: Any, catalog_path: Path, report: Report) -> ReplaySpec | None:
+    """The ``replay`` table with its tracks file resolved (relative to the catalog) and
+    read; a missing or unusable file is reported at ``replay.tracks``."""
+    spec = _spec(ReplaySpec, raw, "replay", report)
+    if spec is None:
+        return None
+    path = Path(spec.tracks).expanduser()
+    if not path.is_absolute():
+        path = catalog_path.parent / path
+    if not path.is_file():
+        report.add("replay.tracks", f"an existing tracks file (Parquet, relative to "
+                   f"{catalog_path.parent}; not found: {path})", spec.tracks)
+        return None
+    path = path.resolve()
+    problem = _tracks_problem(path)
+    if problem is not None:
+        report.add("replay.tracks", f"a valid tracks file: {problem.path}: {problem.key}: "
+                   f"expected {problem.expected}", spec.tracks)
+        return None
+    return ReplaySpec(tracks=spec.tracks, mode=spec.mode,
+                      handover_time_gap_s=spec.handover_time_gap_s,
+                      lane_changes=spec.lane_changes, tracks_path=path)
+
+
+def _tracks_problem(path: Path) -> TracksError | None:
+    """Why the tracks file at ``path`` is unusable (None: it is usable), cached by its
+    size and modification time."""
+    st = path.stat()
+    cached = _TRACKS_CHECKED.get(path)
+    if cached is not None and cached[:2] == (st.st_size, st.st_mtime_ns):
+        return cached[2]
+    try:
+        read_tracks(path)
+        problem = None
+    except TracksError as exc:
+        problem = exc
+    _TRACKS_CHECKED[path] = (st.st_size, st.st_mtime_ns, problem)
+    return problem
 
 
 def _traffic(raw: Any, scalars: dict[str, Any], report: Report) -> TrafficSpec | None:

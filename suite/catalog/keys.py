@@ -9,7 +9,7 @@ __all__ = ["DEFAULT_KEYS", "OPTIONAL_SUBKEYS", "REQUIRED_KEYS", "SCENARIO_KEYS"]
 SCENARIO_KEYS = (
     "name", "net", "route", "ego", "stalled", "traffic", "controller", "duration_s", "step_s",
     "seed", "allow_shoulder", "criteria", "record_radius_m", "timeout_s", "friction",
-    "ramp_traffic", "actors", "sumo_step_s", "sweep", "search",
+    "ramp_traffic", "actors", "sumo_step_s", "replay", "sweep", "search",
 )
 # ``search`` is read by ``hwyeval search`` (suite.search.space); run and list ignore it
 DEFAULT_KEYS = tuple(k for k in SCENARIO_KEYS if k not in ("name", "sweep", "search"))
@@ -21,4 +21,5 @@ OPTIONAL_SUBKEYS: dict[str, tuple[str, ...]] = {
                 "lane_speeds_mps"),
     "ramp_traffic.*": ("edge", "vehicles_per_hour", "speed_mps"),
     "actors.*": ("id", "lane", "pos_m", "speed_mps", "length_m", "width_m", "events"),
+    "replay": ("tracks", "mode", "handover_time_gap_s", "lane_changes"),
 }

@@ -1,7 +1,7 @@
 """The resolved, validated values a catalog yields: the specs of one scenario run
 (:class:`EgoSpec`, :class:`StalledSpec`, :class:`ActorSpec` with its
 :class:`ActorEventSpec`, :class:`TrafficSpec`, :class:`RampTrafficSpec`,
-:class:`ControllerSpec`),
+:class:`ReplaySpec`, :class:`ControllerSpec`),
 the :class:`Scenario` itself and the :class:`Catalog` of them.
 
 Each spec checks its own fields on construction (``_RULES``) and raises
@@ -23,9 +23,9 @@ from suite.catalog.errors import SpecError
 from suite.catalog.frozen import FrozenMap, thaw, thaw_map
 from suite.catalog.rules import Rule
 
-__all__ = ["ActorEventSpec", "ActorSpec", "Catalog", "ControllerSpec", "EgoSpec",
-           "RampTrafficSpec", "Scenario", "StalledSpec", "TrafficSpec", "default_sumo_step",
-           "sumo_step_problem"]
+__all__ = ["REPLAY_LANE_CHANGES", "REPLAY_MODES", "ActorEventSpec", "ActorSpec", "Catalog",
+           "ControllerSpec", "EgoSpec", "RampTrafficSpec", "ReplaySpec", "Scenario",
+           "StalledSpec", "TrafficSpec", "default_sumo_step", "sumo_step_problem"]
 
 DEFAULT_SUMO_STEP_S = 0.1  # SUMO's own step by default: the field's usual 10 Hz
 
@@ -255,6 +255,77 @@ class RampTrafficSpec:
             rules.as_float(self, "speed_mps")
 
 
+REPLAY_MODES = ("replay", "reactive")
+# Lane changes of a reactive (handed-over) recorded vehicle -> SUMO lane-change mode:
+# none at all, only those its route needs (where a lane ends), or SUMO's default set.
+REPLAY_LANE_CHANGES: Mapping[str, int] = FrozenMap({"none": 0, "strategic": 1, "all": 1621})
+
+
+def _choice(options: tuple[str, ...]) -> Rule:
+    what = f"one of {list(options)}"
+
+    def check(v: Any) -> str | None:
+        return None if isinstance(v, str) and v in options else what
+
+    return check
+
+
+def _tracks_name(v: Any) -> str | None:
+    problem = rules.nameable_path(v)
+    if not isinstance(v, str) or not v:
+        return "a tracks file path (Parquet, suite.catalog.tracks), relative to the catalog"
+    return problem
+
+
+@dataclass(frozen=True)
+class ReplaySpec:
+    """Recorded traffic around the ego (:mod:`suite.world.replay`, docs/replay.md).
+
+    ``tracks``: the tracks file (:mod:`suite.catalog.tracks`) as the catalog names it,
+    relative to the catalog file (or absolute); ``tracks_path`` its resolved path (set by
+    the loader; ``None`` until then). ``mode``: ``"replay"`` (every recorded vehicle
+    follows its recording, blind to the ego) or ``"reactive"`` (a recorded vehicle hands
+    over to SUMO's car-following driver once its time gap behind the ego, gap / its speed
+    [s], is below ``handover_time_gap_s`` [s] (> 0) with the ego in its lane or about to
+    be, or whenever it is behind the ego in the ego's lane). ``lane_changes``: what a
+    handed-over vehicle may change lanes for: ``"none"``, ``"strategic"`` (only to stay
+    on its route) or ``"all"`` (SUMO's default lane-change model)."""
+
+    tracks: str
+    mode: str = "replay"
+    handover_time_gap_s: float = 1.0
+    lane_changes: str = "strategic"
+    tracks_path: Path | None = None
+
+    _RULES: ClassVar[dict[str, Rule]] = {
+        "tracks": _tracks_name, "mode": _choice(REPLAY_MODES),
+        "handover_time_gap_s": rules.num(0.0, strict=True),
+        "lane_changes": _choice(tuple(REPLAY_LANE_CHANGES)),
+    }
+    _REQUIRED: ClassVar[tuple[str, ...]] = ("tracks",)
+
+    def __post_init__(self) -> None:
+        rules.check_fields(self)
+        rules.as_float(self, "handover_time_gap_s")
+        if self.tracks_path is not None:
+            object.__setattr__(self, "tracks_path", Path(self.tracks_path))
+
+    @property
+    def reactive(self) -> bool:
+        return self.mode == "reactive"
+
+    @property
+    def lane_change_mode(self) -> int:
+        """SUMO's lane-change mode of a handed-over vehicle (``REPLAY_LANE_CHANGES``)."""
+        return int(REPLAY_LANE_CHANGES[self.lane_changes])
+
+    def as_dict(self) -> dict[str, Any]:
+        """The catalog's keys (``tracks_path`` is machine-specific, as ``net_path``)."""
+        return {"tracks": self.tracks, "mode": self.mode,
+                "handover_time_gap_s": self.handover_time_gap_s,
+                "lane_changes": self.lane_changes}
+
+
 @dataclass(frozen=True)
 class ControllerSpec:
     """A registered controller and its (immutable, JSON-able) options."""
@@ -322,6 +393,7 @@ class Scenario:
     ramp_traffic: tuple[RampTrafficSpec, ...] = ()
     actors: tuple[ActorSpec, ...] = ()
     sumo_step_s: float | None = None  # SUMO's step [s]; None: default_sumo_step(step_s)
+    replay: ReplaySpec | None = None  # recorded traffic (suite.world.replay); None: none
 
     _RULES: ClassVar[dict[str, Rule]] = {
         "name": rules.name_rule, "family": rules.name_rule,
@@ -348,6 +420,8 @@ class Scenario:
             raise SpecError("controller", "a ControllerSpec", self.controller)
         if self.traffic is not None and not isinstance(self.traffic, TrafficSpec):
             raise SpecError("traffic", "a TrafficSpec or None", self.traffic)
+        if self.replay is not None and not isinstance(self.replay, ReplaySpec):
+            raise SpecError("replay", "a ReplaySpec or None", self.replay)
         stalled = tuple(self.stalled)
         if any(not isinstance(s, StalledSpec) for s in stalled):
             raise SpecError("stalled", "a sequence of StalledSpec", self.stalled)
@@ -392,7 +466,14 @@ class Scenario:
         return max(_ticks(self.world_step_s) // max(_ticks(self.step_s), 1), 1)
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-serialisable dict of every field."""
+        """JSON-serialisable dict of every field (``replay`` only when set, so that a
+        scenario without recorded traffic keeps the dict, and the identity, it had)."""
+        out = self._as_dict()
+        if self.replay is not None:
+            out["replay"] = self.replay.as_dict()
+        return out
+
+    def _as_dict(self) -> dict[str, Any]:
         return {
             "name": self.name,
             "family": self.family,

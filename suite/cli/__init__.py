@@ -7,6 +7,7 @@
     hwyeval search CATALOG --out DIR --budget N [--sampler tpe|cmaes|random|qmc] [--seed S]
                    [--jobs J] [--resume | --overwrite] [--no-log] [--executor local|ray]
     hwyeval history add DB RUNDIR ... | hwyeval history DB [--out DIR] [--json] [--sql Q]
+    hwyeval import commonroad FILE.xml [FILE.xml ...] --out DIR
     hwyeval report DIR
     hwyeval compare BASE NEW [--out DIR] [--tolerances FILE] [--timing-gate] [--json]
     hwyeval view PATH [--failed] [--web [--port N] [--bind ADDR]]
@@ -50,6 +51,7 @@ from suite.cli.common import (
     positive_seconds,
 )
 from suite.cli.history import add_history_parser
+from suite.cli.importer import add_import_parser
 from suite.cli.paper import add_paper_parser
 from suite.cli.run import cmd_run
 from suite.cli.search import add_search_parser
@@ -162,6 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_controllers)
     add_paper_parser(sub)
     add_search_parser(sub)
+    add_import_parser(sub)
     add_history_parser(sub)
     return p
 

@@ -26,3 +26,10 @@ ENTITY_PATHS = {
 
 # Every controller-specific diagnostic (``Trace.extra``) is a scalar at CONTROLLER/<name>.
 CONTROLLER = "/controller"
+
+# Recorded vehicles (scenario ``replay``), only in the logs of runs that have them:
+# following their recording, and handed over to SUMO's driver (reactive replay).
+RECORDED_PATHS = {
+    "replayed": "/world/replayed",
+    "reactive": "/world/reactive",
+}

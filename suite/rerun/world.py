@@ -4,7 +4,10 @@ Static: the road (lane edges, shoulders, centrelines, reference path), the drive
 the stalled cars of the scenario. Per step: the ego box, velocity arrow (labelled with
 the pass side and its reason) and follow frame, the other vehicles' boxes, the obstacle
 ellipses the controller saw (coloured by pass side), its plan and preview polylines,
-the preview-error arrow and the detection circle.
+the preview-error arrow and the detection circle. Recorded vehicles (scenario
+``replay``) have their own entities and colours, by the neighbours' ``agent`` column:
+``/world/replayed`` (following the recording, labelled ``<id> (replayed)``) and
+``/world/reactive`` (handed over to SUMO's driver, ``<id> (reactive)``).
 """
 
 from __future__ import annotations
@@ -13,8 +16,9 @@ import numpy as np
 import rerun as rr
 
 from reports.geometry import box_corners
+from reports.record import AGENT_NAMES, AGENT_REACTIVE, AGENT_REPLAYED
 from suite.rerun.blueprint import VIEW_FRAME_SCALE, north_up_transform
-from suite.rerun.paths import ENTITY_PATHS
+from suite.rerun.paths import ENTITY_PATHS, RECORDED_PATHS
 from suite.rerun.stream import Colour, FlatStrips, RunLog
 
 # Colours chosen to read on the viewer's dark background.
@@ -25,6 +29,8 @@ C_REFERENCE = (80, 170, 255, 200)
 C_EGO = (60, 230, 120, 255)
 C_TRAFFIC = (150, 180, 230, 255)
 C_STALLED = (255, 60, 60, 255)
+C_REPLAYED = (20, 184, 166, 255)  # teal (as the HTML views): a recording, blind to the ego
+C_REACTIVE = (200, 110, 255, 255)  # violet: a recorded car now driven by SUMO
 C_PLAN = (60, 255, 200, 255)
 C_PREVIEW = (255, 170, 40, 255)
 C_ERR = (255, 80, 80, 255)
@@ -167,7 +173,7 @@ def log_ego(log: RunLog) -> None:
 
 
 def _boxes_per_step(log: RunLog, path: str, rows: np.ndarray, take: np.ndarray,
-                    colour: Colour, order: float) -> None:
+                    colour: Colour, order: float, suffix: str = "") -> None:
     """Boxes of the neighbour rows ``take`` (with trace rows ``rows``), one batch per step."""
     nb = log.record.neighbours.take(take)
     rows = rows[take]
@@ -182,7 +188,7 @@ def _boxes_per_step(log: RunLog, path: str, rows: np.ndarray, take: np.ndarray,
     log.static(path, rr.LineStrips2D.from_fields(
         colors=[colour], radii=rr.components.Radius.ui_points(1.25), draw_order=order,
         show_labels=True))
-    log.strips_per_step(path, boxes[ok], counts, labels=[str(i) for i in nb.id[ok]])
+    log.strips_per_step(path, boxes[ok], counts, labels=[str(i) + suffix for i in nb.id[ok]])
 
 
 def log_vehicles(log: RunLog) -> None:
@@ -193,8 +199,16 @@ def log_vehicles(log: RunLog) -> None:
     on_trace = rows >= 0
     stalled_ids = {s.id for s in stalled}
     is_stalled = nb.stalled | np.isin(np.asarray(nb.id, dtype=str), list(stalled_ids))
-    _boxes_per_step(log, ENTITY_PATHS["vehicles"], rows, on_trace & ~is_stalled, C_TRAFFIC,
-                    20.0)
+    recorded = np.zeros(len(nb), dtype=bool)
+    for agent, colour in ((AGENT_REPLAYED, C_REPLAYED), (AGENT_REACTIVE, C_REACTIVE)):
+        mine = nb.agent == agent
+        recorded |= mine
+        if mine.any():
+            name = AGENT_NAMES[agent]
+            _boxes_per_step(log, RECORDED_PATHS[name], rows, on_trace & mine, colour, 20.5,
+                            f" ({name})")
+    _boxes_per_step(log, ENTITY_PATHS["vehicles"], rows, on_trace & ~is_stalled & ~recorded,
+                    C_TRAFFIC, 20.0)
     if not stalled:
         _boxes_per_step(log, ENTITY_PATHS["stalled"], rows, on_trace & is_stalled, C_STALLED,
                         21.0)

@@ -96,17 +96,18 @@ class _Columns:
 _NEIGHBOUR_NUMERIC = {"step": np.int64, "t_s": np.float64, "x_m": np.float64,
                       "y_m": np.float64, "heading_rad": np.float64, "speed_mps": np.float64,
                       "length_m": np.float64, "width_m": np.float64, "lane_index": np.int64,
-                      "stalled": np.bool_}
+                      "stalled": np.bool_, "agent": np.int8}
 
 
 @numba.njit(cache=True)
 def _append_within(step: int, t_s: float, ex: float, ey: float, radius2: float,
                    x: np.ndarray, y: np.ndarray, heading: np.ndarray, speed: np.ndarray,
                    length: np.ndarray, width: np.ndarray, lane: np.ndarray, stalled: np.ndarray,
-                   a: int, o_step: np.ndarray, o_t: np.ndarray, o_x: np.ndarray,
-                   o_y: np.ndarray, o_heading: np.ndarray, o_speed: np.ndarray,
-                   o_length: np.ndarray, o_width: np.ndarray, o_lane: np.ndarray,
-                   o_stalled: np.ndarray, picked: np.ndarray) -> int:
+                   agent: np.ndarray, a: int, o_step: np.ndarray, o_t: np.ndarray,
+                   o_x: np.ndarray, o_y: np.ndarray, o_heading: np.ndarray,
+                   o_speed: np.ndarray, o_length: np.ndarray, o_width: np.ndarray,
+                   o_lane: np.ndarray, o_stalled: np.ndarray, o_agent: np.ndarray,
+                   picked: np.ndarray) -> int:
     """Rows ``a, a+1, ...`` of the ``o_*`` neighbour columns from the vehicles (n,) whose
     CG is within ``radius2`` [m²] of the ego's CG (ex, ey) [m], in traffic order
     (``(x - ex)² + (y - ey)² <= radius2``, evaluated as numpy does); ``picked`` gets
@@ -127,6 +128,7 @@ def _append_within(step: int, t_s: float, ex: float, ey: float, radius2: float,
             o_width[r] = width[k]
             o_lane[r] = lane[k]
             o_stalled[r] = stalled[k]
+            o_agent[r] = agent[k]
             picked[n] = k
             n += 1
     return n
@@ -136,9 +138,10 @@ def load_kernels() -> None:
     """Load (or compile once) this module's kernel on a tiny input: the forkserver's
     warm-up calls it, so scenario processes inherit the compiled code."""
     f, i, b = np.zeros(1), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.bool_)
-    _append_within(0, 0.0, 0.0, 0.0, 1.0, f, f, f, f, f, f, i, b, 0, i.copy(), f.copy(),
+    g = np.zeros(1, dtype=np.int8)
+    _append_within(0, 0.0, 0.0, 0.0, 1.0, f, f, f, f, f, f, i, b, g, 0, i.copy(), f.copy(),
                    f.copy(), f.copy(), f.copy(), f.copy(), f.copy(), f.copy(), i.copy(),
-                   b.copy(), i.copy())
+                   b.copy(), g.copy(), i.copy())
 
 
 def _as(values: object, dtype: type) -> np.ndarray:
@@ -249,10 +252,11 @@ class TraceRecorder:
                            self._radius2, _as(traffic.x_m, f8), _as(traffic.y_m, f8),
                            _as(traffic.heading_rad, f8), _as(traffic.speed_mps, f8),
                            _as(traffic.length_m, f8), _as(traffic.width_m, f8),
-                           _as(traffic.lane_index, i8), _as(traffic.stalled, np.bool_), a,
-                           c["step"], c["t_s"],
+                           _as(traffic.lane_index, i8), _as(traffic.stalled, np.bool_),
+                           _as(traffic.agent, np.int8), a, c["step"], c["t_s"],
                            c["x_m"], c["y_m"], c["heading_rad"], c["speed_mps"], c["length_m"],
-                           c["width_m"], c["lane_index"], c["stalled"], self._picked)
+                           c["width_m"], c["lane_index"], c["stalled"], c["agent"],
+                           self._picked)
         self._nb.trim(a + n)
         ids = traffic.ids
         self._nb_ids.extend(ids if n == count else [ids[k] for k in self._picked[:n].tolist()])

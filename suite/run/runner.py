@@ -273,7 +273,7 @@ def _record(scenario: Scenario, options: RunOptions, vehicle: VehicleParams, run
         # Linux reports ru_maxrss in KiB: the scenario process's peak memory.
         peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         sumo_t_origin_s=summary.t_origin_s, stalled=summary.stalled,
-        sumo_collisions=summary.collisions, ssm=summary.ssm)
+        sumo_collisions=summary.collisions, ssm=summary.ssm, replay=summary.replay)
     return RunRecord(info=info, outcome=outcome, road=road, trace=trace, neighbours=neighbours,
                      arrays=arrays, run_dir=None)
 

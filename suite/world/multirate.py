@@ -67,4 +67,4 @@ def extrapolate_traffic(traffic: Traffic, tau_s: float) -> Traffic:
                    heading_rad=traffic.heading_rad, speed_mps=traffic.speed_mps,
                    length_m=traffic.length_m, width_m=traffic.width_m,
                    lane_index=traffic.lane_index, road_id=traffic.road_id,
-                   stalled=traffic.stalled)
+                   stalled=traffic.stalled, agent=traffic.agent)

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from controllers.behaviour.types import Traffic
-from reports.record import SsmSummary, StalledVehicle, SumoCollision
+from reports.record import ReplaySummary, SsmSummary, StalledVehicle, SumoCollision
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,8 @@ class Scene:
 class WorldSummary:
     """What the world reports at the end: stalled cars as placed, every collision of
     the ego, SUMO's SSM summary and per-time TTC (times on the world clock [s], ttc [s]),
-    and the world time [s] that the run's t = 0 corresponds to."""
+    the world time [s] that the run's t = 0 corresponds to, and the recorded traffic
+    (None: the scenario had none)."""
 
     stalled: tuple[StalledVehicle, ...] = ()
     collisions: tuple[SumoCollision, ...] = ()
@@ -69,6 +70,7 @@ class WorldSummary:
     ssm_times_s: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     ssm_ttc_s: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     t_origin_s: float = 0.0
+    replay: ReplaySummary | None = None
 
     def ssm_ttc_at(self, t_s: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """SSM TTC [s] at run times ``t_s`` (NaN where SUMO tracked no conflict)."""

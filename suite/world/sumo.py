@@ -26,6 +26,14 @@ a collision it registers is only reported (``Scene.collisions``, collisions.xml)
 vehicle is teleported, removed or stopped. Without its sublane model SUMO judges
 collisions along the lane (same lane, overlapping lane positions, 1-D), so its report is
 recorded beside the 2-D box test the verdict rests on (docs/metrics.md).
+
+Recorded traffic (``scenario.replay``, :mod:`suite.world.replay`): the recorded vehicles
+are moved to their recorded poses before every SUMO step, the time of SUMO step k of
+the run being k ``sumo_step_s`` (run time 0 = the recording's initial step); in reactive
+mode they are tested for their handover after each step. A scenario with recorded
+traffic always takes the start's second SUMO step (the one that places the ego when it
+is driven from outside), so that the recorded vehicles of run time 0 are in the first
+scene.
 """
 
 from __future__ import annotations
@@ -39,12 +47,14 @@ import numpy as np
 
 from controllers.behaviour.types import Traffic
 from controllers.plant.vehicle_model import VehicleParams
-from reports.record import StalledVehicle, SumoCollision
+from reports.record import ReplaySummary, StalledVehicle, SumoCollision
 from suite.catalog import Scenario
+from suite.catalog.tracks import read_tracks
 from suite.road.network import RoadNetwork
 from suite.world.actors import ActorScript
 from suite.world.multirate import MultiRate, extrapolate_traffic
 from suite.world.protocol import EgoPose, Scene, WorldEgo, WorldSummary
+from suite.world.replay import HandoverEgo, ReplayAgents
 from suite.world.routes import EGO_ID, STALLED_PREFIX, RouteFile
 from suite.world.ssm import parse_ssm
 
@@ -102,6 +112,8 @@ class SumoWorld:
                               float(scenario.step_s))
         self._k = 0  # control steps since the start
         self._held: Scene | None = None  # the scene of SUMO's last step
+        self._replay: ReplayAgents | None = None
+        self._replay_origin_s = 0.0  # SUMO time of the run's t = 0, known before it
 
     @property
     def ssm_file(self) -> Path:
@@ -133,6 +145,7 @@ class SumoWorld:
             if vid in libsumo.vehicle.getIDList():
                 libsumo.vehicle.setSignals(vid, HAZARD_SIGNAL)
         self._actors.start(libsumo)
+        self._start_replay(libsumo, ego_pose is not None)
         if self.externally_driven:
             libsumo.vehicle.setSpeedMode(EGO_ID, 32)
             libsumo.vehicle.setLaneChangeMode(EGO_ID, 0)
@@ -143,8 +156,9 @@ class SumoWorld:
             [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_LENGTH, tc.VAR_WIDTH,
              tc.VAR_LANE_INDEX, tc.VAR_ROAD_ID])
         hits: tuple[SumoCollision, ...] = ()
-        if ego_pose is not None:
-            self._move_ego(ego_pose)
+        if ego_pose is not None or self._replay is not None:
+            if ego_pose is not None:
+                self._move_ego(ego_pose)
             hits = self._advance()
         self._t_origin = self._time()
         self._stalled = self._stalled_vehicles()
@@ -181,7 +195,28 @@ class SumoWorld:
             summary = SsmSummary(error=f"{type(exc).__name__}: {exc}")
         return WorldSummary(stalled=self._stalled, collisions=tuple(self._collisions),
                             ssm=summary, ssm_times_s=times, ssm_ttc_s=ttcs,
-                            t_origin_s=self._t_origin)
+                            t_origin_s=self._t_origin, replay=self._replay_summary())
+
+    def _start_replay(self, ls: Any, ego_pose_given: bool) -> None:
+        """Read the scenario's tracks (once) and prepare the recorded vehicles; the run's
+        t = 0 is the end of the start's next SUMO step."""
+        spec = self.scenario.replay
+        if spec is None or spec.tracks_path is None:
+            return
+        dt = self.rate.world_step_s
+        steps = int(math.ceil(float(self.scenario.duration_s) / dt)) + 2
+        self._replay = ReplayAgents(spec, read_tracks(spec.tracks_path), dt, steps,
+                                    tuple(self.scenario.route))
+        self._replay.prepare(ls)
+        self._replay_origin_s = self._time() + dt
+
+    def _replay_summary(self) -> ReplaySummary | None:
+        r = self._replay
+        spec = self.scenario.replay
+        if r is None or spec is None:
+            return None
+        return ReplaySummary(tracks=spec.tracks, mode=spec.mode, vehicles=len(r.seen),
+                             handovers=tuple(r.handovers))
 
     # ------------------------------------------------------------------ internals
     def _sumo_args(self, routes: Path) -> list[str]:
@@ -225,6 +260,10 @@ class SumoWorld:
     def _advance(self) -> tuple[SumoCollision, ...]:
         """One SUMO step (the actors' commands first); the collisions involving the ego."""
         self._actors.apply(self._ls, self._time() - self._t_origin)
+        if self._replay is not None:
+            dt = self.rate.world_step_s
+            self._replay.apply(self._ls, int(round(
+                (self._time() + dt - self._replay_origin_s) / dt)))
         self._ls.simulationStep()
         t = self._time()
         hits = tuple(SumoCollision(t_s=t, collider=str(c.collider), victim=str(c.victim),
@@ -237,8 +276,18 @@ class SumoWorld:
     def _scene(self, hits: tuple[SumoCollision, ...]) -> Scene:
         ego = self._ego() if EGO_ID in self._ls.vehicle.getIDList() else None
         traffic = self._traffic() if ego is not None else Traffic.empty()
-        return Scene(t_s=self._time() - self._t_origin, traffic=traffic, ego=ego,
-                     collisions=hits)
+        t_s = self._time() - self._t_origin
+        if self._replay is not None and ego is not None:
+            self._replay.observe(self._ls, self._handover_ego(ego), traffic, t_s)
+        return Scene(t_s=t_s, traffic=traffic, ego=ego, collisions=hits)
+
+    def _handover_ego(self, ego: WorldEgo) -> HandoverEgo:
+        """The ego's SUMO box for the handover rule (centre from the front bumper)."""
+        half = 0.5 * float(self.vehicle.length_m)
+        return HandoverEgo(ego.front_x_m - half * math.cos(ego.heading_rad),
+                           ego.front_y_m - half * math.sin(ego.heading_rad), ego.heading_rad,
+                           ego.speed_mps, float(self.vehicle.length_m),
+                           float(self.vehicle.width_m), ego.road_id, ego.lane_index)
 
     def _ego(self) -> WorldEgo:
         v = self._ls.vehicle
@@ -294,7 +343,9 @@ class SumoWorld:
             speed_mps=table[:, 3].copy(), length_m=length.copy(), width_m=table[:, 5].copy(),
             lane_index=table[:, 6].astype(np.int64),
             road_id=tuple(str(r[tc.VAR_ROAD_ID]) for r in rows),
-            stalled=np.array([vid.startswith(STALLED_PREFIX) for vid in ids], dtype=bool))
+            stalled=np.array([vid.startswith(STALLED_PREFIX) for vid in ids], dtype=bool),
+            agent=self._replay.agents(ids) if self._replay is not None
+            else np.zeros(len(ids), dtype=np.int8))
 
     def _stalled_vehicles(self) -> tuple[StalledVehicle, ...]:
         """Every stalled vehicle's box (centre, heading) and lane, wherever the ego is."""

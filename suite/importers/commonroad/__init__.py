@@ -1,0 +1,23 @@
+"""``hwyeval import commonroad``: CommonRoad XML scenarios -> a self-contained folder
+(docs/recorded.md).
+
+Per file ``<stem>``: ``<stem>.net.xml`` (:mod:`.net_build`, from the lanelet rows of
+:mod:`.lanelets`), ``<stem>.tracks.parquet`` (:mod:`.tracks`, written with
+:func:`suite.catalog.tracks.write_tracks`), its scenario in ``catalog.toml``
+(:mod:`.catalog_out`); the checks of :mod:`.checks` (time step, road membership) and of
+:mod:`.reader` (uncertain states). :mod:`.pipeline` runs the stages; :mod:`.reader` is
+the only module that imports commonroad-io (lazily): running an imported catalog needs
+no CommonRoad package.
+"""
+
+from suite.importers.commonroad.errors import ImportFailure
+from suite.importers.commonroad.pipeline import (
+    FileResult,
+    ImportOutcome,
+    ImportParams,
+    import_file,
+    import_files,
+)
+
+__all__ = ["FileResult", "ImportFailure", "ImportOutcome", "ImportParams", "import_file",
+           "import_files"]

@@ -1,0 +1,250 @@
+"""The catalog side: the route, the ego and stalled cars resolved on the built net (with
+hwyeval's own :class:`~suite.road.network.RoadNetwork`), one scenario per file, and
+``catalog.toml``.
+
+* **Route.** Upstream from the ego's edge: the predecessor that is not a link, then with
+  the most lanes (to the upstream extension). Downstream: among every path to a net end,
+  the first that reaches a goal edge (the goal's lanelets, or the edges its goal
+  positions lie on), then with the fewest link edges, then the longest.
+* **Ego.** CommonRoad's initial position is the vehicle centre c; the catalog's
+  ``ego.pos_m`` is the front bumper along the route: pos = s(c) + L/2, with s(c) the
+  route position of c's projection on the nearest route lane (edge start + the
+  projection's fraction of the lane shape x the edge length: SUMO's lane positions) and
+  L = :class:`controllers.plant.vehicle_model.VehicleParams`'s ``length_m`` (the box of
+  hwyeval's ego; ``suite.run.runner.initial_state`` puts the box centre at pos - L/2).
+  Its lane is the lane, of the edge at pos, nearest the front bumper point
+  c + L/2 (cos h, sin h). The catalog has no lateral offset: the ego starts on its
+  lane's centre line; c's signed offset from the centre line of the route lane nearest
+  it (left > 0) is reported (:func:`ego_offset_note`, a warning above
+  :data:`LATERAL_WARN_M`).
+* **Stalled.** A static obstacle on a route lane becomes ``stalled`` with its box
+  (pos = s(centre) + length/2, as the ego); elsewhere it is dropped with a note.
+* **Files.** Each imported file leaves ``<stem>.scenario.json`` (its scenario table and
+  notes); ``catalog.toml`` is rebuilt from every such file in DIR, so a file that fails
+  later never removes what an earlier import wrote, and ``catalog.toml`` lists every
+  file imported into DIR so far.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from controllers.plant.vehicle_model import VehicleParams
+from suite.catalog.toml_write import dumps_catalog
+from suite.importers.commonroad.errors import ImportFailure
+from suite.importers.commonroad.geometry import project
+from suite.importers.commonroad.net_build import BuiltNet
+from suite.importers.commonroad.records import EgoStart, ObstacleRecord
+from suite.road.network import RoadNetwork
+
+__all__ = ["CATALOG_NAME", "FRAGMENT_SUFFIX", "LATERAL_WARN_M", "RoutePoint", "choose_route",
+           "ego_offset_note", "ego_table",
+           "locate_on_route", "scenario_name", "stalled_tables", "write_catalog",
+           "write_fragment"]
+
+CATALOG_NAME = "catalog.toml"
+FRAGMENT_SUFFIX = ".scenario.json"
+STEP_S = 0.02
+DEFAULT_CONTROLLER = "two_loop"
+MAX_PATHS = 20000
+LATERAL_WARN_M = 0.5
+"""An ego centre farther than this [m] from its lane's centre line is a warning (the
+catalog starts it on the centre line)."""
+
+
+@dataclass(frozen=True)
+class RoutePoint:
+    """A point projected on the route: edge, lane index, route position [m], distance
+    from that lane's centre line, the lane's width and the signed lateral offset from
+    the centre line (left of the direction of travel > 0) [m]."""
+
+    edge_id: str
+    lane: int
+    pos_m: float
+    distance_m: float
+    width_m: float
+    lateral_m: float = 0.0
+
+
+def scenario_name(stem: str) -> str:
+    """A catalog name ``[a-z0-9_]+`` from a file stem."""
+    name = re.sub(r"[^a-z0-9_]+", "_", stem.lower()).strip("_")
+    return name or "recording"
+
+
+def _forward_paths(net: BuiltNet, start: str) -> list[tuple[str, ...]]:
+    out: list[tuple[str, ...]] = []
+    stack: list[tuple[str, ...]] = [(start,)]
+    while stack and len(out) < MAX_PATHS:
+        path = stack.pop()
+        nxt = [s for s in net.successors(path[-1]) if s not in path]
+        if not nxt:
+            out.append(path)
+        stack.extend((*path, s) for s in nxt)
+    return out
+
+
+def choose_route(net: BuiltNet, network: RoadNetwork, ego_edge: str,
+                 goal_edges: Sequence[str]) -> tuple[str, ...]:
+    """The scenario's route (module docstring)."""
+    back: list[str] = []
+    edge = ego_edge
+    while True:
+        preds = [p for p in net.predecessors(edge) if p not in back and p != ego_edge]
+        if not preds:
+            break
+        edge = min(preds, key=lambda p: (net.edges[p].link, -network.lane_count(p), p))
+        back.append(edge)
+    goals = set(goal_edges)
+
+    def key(path: tuple[str, ...]) -> tuple[bool, int, float, tuple[str, ...]]:
+        length = sum(network.edge_length_m(e) for e in path)
+        return (not (goals & set(path)) if goals else False,
+                sum(net.edges[e].link for e in path), -length, path)
+
+    forward = min(_forward_paths(net, ego_edge), key=key)
+    return (*back[::-1], *forward)
+
+
+def locate_on_route(network: RoadNetwork, route: Sequence[str], x_m: float,
+                    y_m: float) -> RoutePoint:
+    """The route lane nearest (x_m, y_m) and the point's route position (docstring)."""
+    starts = network.route_edge_starts_m(route)
+    best: RoutePoint | None = None
+    for lane in network.lane_info(route):
+        pr = project(lane.shape_xy_m, x_m, y_m)
+        if pr.length_m <= 0.0:
+            continue
+        pos = starts[lane.edge_id] + pr.s_m / pr.length_m * network.edge_length_m(lane.edge_id)
+        cand = RoutePoint(lane.edge_id, lane.index, pos, pr.distance_m, lane.width_m,
+                          pr.lateral_m)
+        if best is None or cand.distance_m < best.distance_m - 1e-9:
+            best = cand
+    if best is None:  # pragma: no cover - a route has lanes
+        raise ValueError("a route without lanes")
+    return best
+
+
+def _lane_at(network: RoadNetwork, route: Sequence[str], pos_m: float, x_m: float,
+             y_m: float) -> int:
+    """The lane, of the edge at route position ``pos_m``, nearest (x_m, y_m)."""
+    edge, _ = network.locate(route, pos_m)
+    lanes = [ln for ln in network.lane_info((edge,))]
+    return min(lanes, key=lambda ln: (project(ln.shape_xy_m, x_m, y_m).distance_m,
+                                      ln.index)).index
+
+
+def ego_table(path: str, network: RoadNetwork, route: Sequence[str], ego: EgoStart,
+              vehicle: VehicleParams) -> tuple[dict[str, Any], RoutePoint]:
+    """The catalog's ``ego`` table (front bumper, lane at that position, speeds)."""
+    centre = locate_on_route(network, route, ego.x_m, ego.y_m)
+    if centre.distance_m > 0.5 * centre.width_m:
+        raise ImportFailure(path, f"planningProblem {ego.problem_id} initialState",
+                            f"the ego is {centre.distance_m:.2f} m from the nearest lane of "
+                            "its route")
+    pos = centre.pos_m + 0.5 * vehicle.length_m
+    total = network.route_length_m(route)
+    if not pos < total:
+        raise ImportFailure(path, f"planningProblem {ego.problem_id} initialState",
+                            "the ego is at the end of the road")
+    fx = ego.x_m + 0.5 * vehicle.length_m * math.cos(ego.heading_rad)
+    fy = ego.y_m + 0.5 * vehicle.length_m * math.sin(ego.heading_rad)
+    lane = _lane_at(network, route, pos, fx, fy)
+    speed = round(float(ego.speed_mps), 4)
+    return ({"lane": lane, "pos_m": round(pos, 3), "speed_mps": speed,
+             "target_speed_mps": speed}, centre)
+
+
+def ego_offset_note(centre: RoutePoint) -> str:
+    """The note on the ego's lateral offset (module docstring), ``WARNING`` above
+    :data:`LATERAL_WARN_M`."""
+    side = "left" if centre.lateral_m > 0 else "right"
+    text = (f"ego lateral offset {centre.lateral_m:+.2f} m ({abs(centre.lateral_m):.2f} m "
+            f"{side} of the centre line of {centre.edge_id} lane {centre.lane}): the run "
+            "starts it on the centre line")
+    return f"WARNING {text}" if abs(centre.lateral_m) > LATERAL_WARN_M else text
+
+
+def stalled_tables(network: RoadNetwork, route: Sequence[str],
+                   statics: Sequence[ObstacleRecord]) -> tuple[list[dict[str, Any]], list[str]]:
+    """Stalled cars from static obstacles on the route (module docstring), and notes."""
+    tables: list[dict[str, Any]] = []
+    notes: list[str] = []
+    for ob in statics:
+        x, y, h = float(ob.x_m[0]), float(ob.y_m[0]), float(ob.heading_rad[0])
+        at = locate_on_route(network, route, x, y)
+        pos = at.pos_m + 0.5 * ob.length_m
+        if at.distance_m > 0.5 * at.width_m or not pos < network.route_length_m(route):
+            notes.append(f"static obstacle {ob.obstacle_id} is not on the ego's route: dropped")
+            continue
+        fx, fy = x + 0.5 * ob.length_m * math.cos(h), y + 0.5 * ob.length_m * math.sin(h)
+        tables.append({"lane": _lane_at(network, route, pos, fx, fy), "pos_m": round(pos, 3),
+                       "length_m": round(ob.length_m, 3), "width_m": round(ob.width_m, 3)})
+    if tables:
+        notes.append(f"{len(tables)} static obstacles became stalled cars")
+    return tables, notes
+
+
+def write_fragment(out_dir: Path, stem: str, name: str, table: Mapping[str, Any],
+                   notes: Sequence[str], source: str) -> Path:
+    """``<stem>.scenario.json``, atomically."""
+    path = out_dir / f"{stem}{FRAGMENT_SUFFIX}"
+    partial = path.with_name(path.name + ".partial")
+    partial.write_text(json.dumps({"name": name, "source": source, "notes": list(notes),
+                                   "scenario": dict(table)}, indent=1) + "\n",
+                       encoding="utf-8")
+    partial.replace(path)
+    return path
+
+
+def _fragments(out_dir: Path) -> list[dict[str, Any]]:
+    out = []
+    for p in sorted(out_dir.glob(f"*{FRAGMENT_SUFFIX}")):
+        try:
+            data = json.loads(p.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(data, dict) and isinstance(data.get("scenario"), dict):
+            out.append(data)
+    return out
+
+
+def write_catalog(out_dir: Path, failed: Sequence[str] = ()) -> Path:
+    """``catalog.toml`` from every scenario file in ``out_dir`` (atomically); names
+    stay unique (a clash gets ``_2``, ``_3``...)."""
+    frags = _fragments(out_dir)
+    header = ["Recorded scenarios imported from CommonRoad by `hwyeval import commonroad`",
+              "(docs/recorded.md). Rebuilt from the *.scenario.json files of this folder.",
+              "Positions: ego.pos_m / stalled pos_m are front bumpers along the route;",
+              "lane 0 = rightmost lane of the edge at that position."]
+    scenarios = []
+    used: set[str] = set()
+    for frag in frags:
+        table = dict(frag["scenario"])
+        name = str(table.get("name", "recording"))
+        k = 2
+        while name in used:
+            name = f"{table.get('name')}_{k}"
+            k += 1
+        used.add(name)
+        table["name"] = name
+        scenarios.append(table)
+        header += ["", f"{name} <- {frag.get('source', '?')}:"]
+        header += [f"  {note}" for note in frag.get("notes", [])]
+    if failed:
+        header += ["", "Not imported (see the command's errors): " + ", ".join(failed)]
+    text = dumps_catalog("\n".join(header),
+                         {"controller": DEFAULT_CONTROLLER, "step_s": STEP_S, "seed": 0},
+                         scenarios)
+    path = out_dir / CATALOG_NAME
+    partial = path.with_name(path.name + ".partial")
+    partial.write_text(text, encoding="utf-8")
+    partial.replace(path)
+    return path
+

@@ -1,0 +1,189 @@
+"""One CommonRoad file -> ``<stem>.net.xml``, ``<stem>.tracks.parquet`` and its catalog
+scenario (``<stem>.scenario.json``, gathered into ``catalog.toml``); several files in
+turn. Each output file is written atomically; a file that fails leaves nothing of its
+own half-written and does not touch what the other files wrote."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from controllers.plant.vehicle_model import VehicleParams
+from suite.catalog.tracks import TrackSet, write_tracks
+from suite.importers.commonroad import catalog_out
+from suite.importers.commonroad.checks import LaneShape, StepCheck, StepParams, check_step
+from suite.importers.commonroad.errors import ImportFailure
+from suite.importers.commonroad.geometry import project
+from suite.importers.commonroad.lanelets import RoadRows, build_road
+from suite.importers.commonroad.net_build import BuiltNet, NetParams, build_net, plan_net
+from suite.importers.commonroad.reader import read_file
+from suite.importers.commonroad.records import RecordedFile
+from suite.importers.commonroad.speed import lane_speeds
+from suite.importers.commonroad.tracks import select_tracks
+from suite.road.network import RoadNetwork, RoadNetworkError
+
+__all__ = ["FileResult", "ImportOutcome", "ImportParams", "import_file", "import_files"]
+
+
+@dataclass(frozen=True)
+class ImportParams:
+    """Everything the import takes: the net's (extensions, speed limit), the time-step
+    check's, and hwyeval's ego (its ``length_m`` turns CommonRoad's centre into the
+    catalog's front bumper)."""
+
+    net: NetParams = field(default_factory=NetParams)
+    step: StepParams = field(default_factory=StepParams)
+    vehicle: VehicleParams = field(default_factory=VehicleParams)
+
+
+@dataclass(frozen=True)
+class FileResult:
+    """What one file gave: outputs, net size, tracks kept and dropped (by reason), the
+    step check, uncertain states, the ego's lane and position [m], the ego centre's
+    signed lateral offset from its lane's centre line [m] (left > 0; the run starts it
+    on the centre line), notes, wall time [s]."""
+
+    source: Path
+    name: str
+    net_path: Path
+    tracks_path: Path
+    edges: int
+    lanes: int
+    recorded_edges: int
+    extension_m: float
+    route: tuple[str, ...]
+    kept: int
+    dropped: dict[str, tuple[int, ...]]
+    step: StepCheck
+    uncertain_states: int
+    stalled: int
+    ego_lane: int
+    ego_pos_m: float
+    ego_lateral_m: float
+    duration_s: float
+    notes: tuple[str, ...]
+    wall_s: float
+
+
+@dataclass(frozen=True)
+class ImportOutcome:
+    """Every file's result, the failures (in input order) and the catalog written."""
+
+    results: tuple[FileResult, ...]
+    failures: tuple[ImportFailure, ...]
+    catalog: Path | None
+
+
+def _lane_shapes(net: BuiltNet) -> list[LaneShape]:
+    return [LaneShape(e.edge_id, i, xy, w) for e in net.edges.values()
+            for i, (xy, w) in enumerate(zip(e.lanes_xy_m, e.widths_m, strict=True))]
+
+
+def _goal_edges(rec: RecordedFile, road: RoadRows, net: BuiltNet) -> list[str]:
+    """Edges of the goal's lanelets and of the lanes nearest its goal positions."""
+    edges = [net.row_edges[r] for lid in rec.ego.goal_lanelets
+             for r, _ in road.places_of(lid)]
+    lanes = _lane_shapes(net)
+    for x, y in rec.ego.goal_points_xy_m:
+        edges.append(min(lanes, key=lambda ln: project(ln.xy_m, x, y).distance_m).edge_id)
+    return edges
+
+
+def _uncertain_note(rec: RecordedFile) -> list[str]:
+    u = rec.uncertain
+    if not u.states:
+        return []
+    return [f"WARNING {u.states} uncertain states of {u.obstacles} obstacles (position "
+            "shapes, orientation/velocity intervals): their centres were used"]
+
+
+def _dropped_notes(dropped: dict[str, tuple[int, ...]]) -> list[str]:
+    what = {"opposite": "heading against the road (opposite carriageway)",
+            "off_road": "first sample off the ego's road",
+            "not_vehicle": "not road vehicles",
+            "before_start": "no sample at or after the initial time step"}
+    return [f"{len(ids)} obstacles dropped, {what.get(k, k)}: ids "
+            f"{', '.join(map(str, ids[:20]))}{' ...' if len(ids) > 20 else ''}"
+            for k, ids in sorted(dropped.items()) if ids]
+
+
+def _duration_s(rec: RecordedFile, ts: TrackSet, dt_s: float) -> float:
+    end = max((t.end_s for t in ts.tracks), default=0.0)
+    if end <= 0.0 and rec.ego.goal_end_step is not None:
+        end = (rec.ego.goal_end_step - rec.ego.time_step) * dt_s
+    if not (math.isfinite(end) and end > 0.0):
+        raise ImportFailure(rec.path, "dynamicObstacle", "no recorded sample after the "
+                            "planning problem's initial time step: the run would be empty")
+    return round(end, 6)
+
+
+def import_file(source: Path, out_dir: Path, params: ImportParams) -> FileResult:
+    """Import one file into ``out_dir`` (module docstring)."""
+    t0 = time.perf_counter()
+    stem = source.name[:-4] if source.name.lower().endswith(".xml") else source.stem
+    rec = read_file(source)
+    road = build_road(rec)
+    speeds = lane_speeds(road, rec, params.net.speed_limit_mps)
+    plan = plan_net(road, params.net, rec.path, speeds)
+    step = check_step(rec.obstacles, rec.dt_s, params.step)
+    dt_s = step.dt_s
+    selection = select_tracks(rec.obstacles, _lane_shapes(plan), rec.ego.time_step, dt_s)
+    net_path = out_dir / f"{stem}.net.xml"
+    net = build_net(plan, params.net, net_path, rec.path)
+    try:
+        network = RoadNetwork.load(net_path)
+    except RoadNetworkError as exc:
+        raise ImportFailure(rec.path, "SUMO net", str(exc)) from exc
+    ego_edge = net.row_edges[road.place[road.ego_lanelet][0]]
+    route = catalog_out.choose_route(net, network, ego_edge, _goal_edges(rec, road, net))
+    ego, centre = catalog_out.ego_table(rec.path, network, route, rec.ego, params.vehicle)
+    stalled, stalled_notes = catalog_out.stalled_tables(
+        network, route, [o for o in rec.obstacles if o.static])
+    early = ([f"{selection.early_samples_dropped} samples before the initial time step "
+              "dropped (the last one before it kept where t = 0 falls between samples)"]
+             if selection.early_samples_dropped else [])
+    notes = [step.note, catalog_out.ego_offset_note(centre), *_uncertain_note(rec),
+             *_dropped_notes(selection.dropped), *early, *road.notes, speeds.note,
+             *rec.notes, *stalled_notes,
+             *(f"netconvert: {w}" for w in net.warnings)]
+    notes.insert(1, f"{len(selection.tracks)} recorded vehicles kept")
+    ts = TrackSet(selection.tracks, dt_s, tuple(notes))
+    duration = _duration_s(rec, ts, dt_s)
+    tracks_path = out_dir / f"{stem}.tracks.parquet"
+    write_tracks(tracks_path, ts)
+    name = catalog_out.scenario_name(stem)
+    table: dict[str, object] = {"name": name, "net": net_path.name, "route": list(route),
+                                "ego": ego, "duration_s": duration,
+                                "step_s": catalog_out.STEP_S}
+    if stalled:
+        table["stalled"] = stalled
+    table["replay"] = {"tracks": tracks_path.name, "mode": "replay"}
+    catalog_out.write_fragment(out_dir, stem, name, table, notes, source.name)
+    n_lanes = sum(len(e.lanes_xy_m) for e in net.edges.values())
+    return FileResult(source, name, net_path, tracks_path, len(net.edges), n_lanes,
+                      len(net.row_edges), params.net.downstream_extension_m, route,
+                      len(selection.tracks), selection.dropped, step, rec.uncertain.states,
+                      len(stalled), int(ego["lane"]), float(ego["pos_m"]),
+                      round(centre.lateral_m, 3), duration,
+                      tuple(notes), time.perf_counter() - t0)
+
+
+def import_files(sources: Sequence[Path], out_dir: Path,
+                 params: ImportParams | None = None) -> ImportOutcome:
+    """Import every file in turn; a failing file is recorded and the next one goes on.
+    ``catalog.toml`` is rebuilt at the end from every scenario of ``out_dir``."""
+    params = ImportParams() if params is None else params
+    out_dir.mkdir(parents=True, exist_ok=True)
+    results: list[FileResult] = []
+    failures: list[ImportFailure] = []
+    for source in sources:
+        try:
+            results.append(import_file(source, out_dir, params))
+        except ImportFailure as exc:
+            failures.append(exc)
+    catalog = catalog_out.write_catalog(out_dir, [Path(f.path).name for f in failures]) \
+        if results or any(out_dir.glob(f"*{catalog_out.FRAGMENT_SUFFIX}")) else None
+    return ImportOutcome(tuple(results), tuple(failures), catalog)

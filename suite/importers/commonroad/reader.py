@@ -1,0 +1,285 @@
+"""Read one CommonRoad XML file into :mod:`~suite.importers.commonroad.records` (the one
+module that imports commonroad-io, lazily).
+
+commonroad-io's ``CommonRoadFileReader`` imports its protobuf reader, which fails with
+the protobuf >= 5 that the ``cluster`` extra needs; ``XMLFileReader`` does not, and XML
+is the only format imported here (docs/recorded.md).
+
+Uncertain states (2018b: a position given as a shape, an orientation or a velocity as an
+interval) are replaced by their centres and counted (:class:`UncertainCount`). The box
+centre of an obstacle is its position moved back by the shape's ``origin_x_shift`` (the
+reference point's offset from the box centre along the heading, 0 in XML files).
+
+Speed limits: a traffic sign element whose commonroad-io id (``TrafficSignIDGermany``
+``274``, ``TrafficSignIDUsa`` ``R2-1``, ... per the scenario's country) is named
+``MAX_SPEED`` gives its first ``additionalValue`` in m/s (CommonRoad's unit); a lanelet
+takes the lowest such sign it references. Values outside (0, :data:`MAX_PLAUSIBLE_MPS`]
+or not numbers are ignored, with a warning note.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from suite.importers.commonroad.errors import ImportFailure
+from suite.importers.commonroad.records import (
+    EgoStart,
+    LaneletRecord,
+    ObstacleRecord,
+    RecordedFile,
+    UncertainCount,
+)
+
+__all__ = ["MAX_PLAUSIBLE_MPS", "read_file"]
+
+MAX_PLAUSIBLE_MPS = 70.0
+"""A ``MAX_SPEED`` value above this [m/s] (252 km/h) is not taken as a speed limit in
+m/s (likely km/h or mph): ignored with a warning."""
+
+INSTALL_HINT = ("commonroad-io is not installed: install hwyeval[commonroad] (pip install "
+                "'hwyeval[commonroad]', or in a cluster venv pip install --no-deps "
+                "'commonroad-io>=2024.1', see docs/recorded.md)")
+
+
+def _xml_reader() -> Any:
+    try:
+        from commonroad.common.reader.file_reader_xml import XMLFileReader
+    except ImportError as exc:
+        raise ImportError(f"{INSTALL_HINT} ({exc})") from exc
+    return XMLFileReader
+
+
+def _precheck(path: Path) -> None:
+    """Well-formed XML, a ``commonRoad`` root, a ``planningProblem`` and a ``lanelet``:
+    named errors instead of commonroad-io's own (less specific) ones. Run only when
+    commonroad-io failed or found no lanelet or planning problem (a second parse of the
+    file costs ~20 % of an import)."""
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        line, col = exc.position
+        raise ImportFailure(str(path), f"XML line {line} column {col}",
+                            f"not well-formed XML ({exc})") from exc
+    except OSError as exc:
+        raise ImportFailure(str(path), "file", f"cannot be read ({exc})") from exc
+    if root.tag != "commonRoad":
+        raise ImportFailure(str(path), f"<{root.tag}>", "expected a <commonRoad> root element")
+    if root.find("planningProblem") is None:
+        raise ImportFailure(str(path), "planningProblem",
+                            "no planning problem: the ego's initial state is needed")
+    if root.find("lanelet") is None:
+        raise ImportFailure(str(path), "lanelet", "no lanelets: a road is needed")
+
+
+def _float(value: Any) -> tuple[float, bool]:
+    """A number, or the centre of an interval (``start``/``end``); (value, uncertain)."""
+    if value is None:
+        return math.nan, False
+    if hasattr(value, "start") and hasattr(value, "end"):
+        return 0.5 * (float(value.start) + float(value.end)), True
+    return float(value), False
+
+
+def _position(value: Any) -> tuple[float, float, bool]:
+    """A point, or the centre of a position shape; (x, y, uncertain)."""
+    if value is None:
+        raise ValueError("a state without a position")
+    if hasattr(value, "center") and not isinstance(value, np.ndarray):
+        c = value.center
+        c = np.asarray([c.x, c.y] if hasattr(c, "x") else c, dtype=np.float64).reshape(-1)
+        return float(c[0]), float(c[1]), True
+    p = np.asarray(value, dtype=np.float64).reshape(-1)
+    return float(p[0]), float(p[1]), False
+
+
+def _box(shape: Any) -> tuple[float, float, float]:
+    """(length, width, origin_x_shift) [m] of an obstacle shape: a rectangle's own, a
+    circle's diameter, else the extent of its vertices."""
+    shift = float(getattr(shape, "origin_x_shift", 0.0) or 0.0)
+    length = getattr(shape, "length", None)
+    width = getattr(shape, "width", None)
+    if length is not None and width is not None:
+        return float(length), float(width), shift
+    radius = getattr(shape, "radius", None)
+    if radius is not None:
+        return 2.0 * float(radius), 2.0 * float(radius), shift
+    verts = np.asarray(shape.vertices, dtype=np.float64).reshape(-1, 2)
+    ext = np.ptp(verts, axis=0)
+    return float(max(ext)), float(min(ext)), shift
+
+
+def _states(obstacle: Any) -> list[Any]:
+    states = [obstacle.initial_state]
+    prediction = getattr(obstacle, "prediction", None)
+    trajectory = getattr(prediction, "trajectory", None)
+    if trajectory is not None:
+        states += list(trajectory.state_list)
+    by_step: dict[int, Any] = {}
+    for st in states:
+        step = st.time_step
+        by_step.setdefault(int(step.start if hasattr(step, "start") else step), st)
+    return [by_step[k] for k in sorted(by_step)]
+
+
+def _obstacle(obstacle: Any, static: bool) -> tuple[ObstacleRecord, int]:
+    """The record of one obstacle and how many of its states were uncertain."""
+    length, width, shift = _box(obstacle.obstacle_shape)
+    if not (length > 0.0 and width > 0.0):
+        raise ValueError(f"a box of {length} x {width} m")
+    rows = []
+    uncertain = 0
+    for st in _states(obstacle):
+        x, y, u_pos = _position(st.position)
+        heading, u_head = _float(getattr(st, "orientation", None))
+        speed, u_speed = _float(getattr(st, "velocity", None))
+        if not math.isfinite(heading):
+            heading = 0.0
+        uncertain += int(u_pos or u_head or u_speed)
+        step = st.time_step
+        rows.append((int(step.start if hasattr(step, "start") else step),
+                     x - shift * math.cos(heading), y - shift * math.sin(heading),
+                     heading, speed))
+    arr = np.asarray(rows, dtype=np.float64)
+    kind = getattr(obstacle.obstacle_type, "value", str(obstacle.obstacle_type))
+    return ObstacleRecord(
+        obstacle_id=int(obstacle.obstacle_id), kind=str(kind), static=static,
+        length_m=length, width_m=width, steps=arr[:, 0].astype(np.int64),
+        x_m=arr[:, 1].copy(), y_m=arr[:, 2].copy(), heading_rad=arr[:, 3].copy(),
+        speed_mps=np.abs(arr[:, 4])), uncertain
+
+
+def _speed_signs(network: Any) -> tuple[dict[int, float], list[str]]:
+    """Sign id -> its lowest ``MAX_SPEED`` value [m/s] (module docstring), and notes."""
+    out: dict[int, float] = {}
+    bad: list[str] = []
+    for sign in getattr(network, "traffic_signs", None) or ():
+        for el in getattr(sign, "traffic_sign_elements", None) or ():
+            ident = getattr(el, "traffic_sign_element_id", None)
+            if getattr(ident, "name", None) != "MAX_SPEED":
+                continue
+            values = list(getattr(el, "additional_values", None) or ())
+            try:
+                v = float(values[0])
+            except (IndexError, TypeError, ValueError):
+                bad.append(f"{sign.traffic_sign_id} ({values!r})")
+                continue
+            if not (math.isfinite(v) and 0.0 < v <= MAX_PLAUSIBLE_MPS):
+                bad.append(f"{sign.traffic_sign_id} ({v:g})")
+                continue
+            sid = int(sign.traffic_sign_id)
+            out[sid] = min(v, out.get(sid, math.inf))
+    notes = [f"WARNING {len(bad)} MAX_SPEED signs ignored (no value in (0, "
+             f"{MAX_PLAUSIBLE_MPS:g}] m/s): {', '.join(bad[:10])}"] if bad else []
+    return out, notes
+
+
+def _lanelet(ll: Any, limits: dict[int, float]) -> LaneletRecord:
+    left = np.asarray(ll.left_vertices, dtype=np.float64).reshape(-1, 2)
+    right = np.asarray(ll.right_vertices, dtype=np.float64).reshape(-1, 2)
+    if left.shape != right.shape or left.shape[0] < 2:
+        raise ValueError(f"left/right bounds of {left.shape[0]}/{right.shape[0]} points "
+                         "(expected the same number, at least 2)")
+    same_left = bool(ll.adj_left_same_direction) if ll.adj_left is not None else False
+    same_right = bool(ll.adj_right_same_direction) if ll.adj_right is not None else False
+    return LaneletRecord(
+        lanelet_id=int(ll.lanelet_id), left_xy_m=left, right_xy_m=right,
+        adj_left=int(ll.adj_left) if same_left else None,
+        adj_right=int(ll.adj_right) if same_right else None,
+        opposite_left=ll.adj_left is not None and not same_left,
+        successors=tuple(int(s) for s in ll.successor or ()),
+        predecessors=tuple(int(p) for p in ll.predecessor or ()),
+        types=tuple(sorted(str(getattr(t, "value", t)) for t in ll.lanelet_type or ())),
+        speed_limit_mps=min((limits[int(i)] for i in ll.traffic_signs or () if int(i) in limits),
+                            default=None))
+
+
+def _goal(problem: Any) -> tuple[tuple[int, ...], tuple[tuple[float, float], ...], int | None]:
+    goal = problem.goal
+    lanelets: list[int] = []
+    for ids in (getattr(goal, "lanelets_of_goal_position", None) or {}).values():
+        lanelets += [int(i) for i in ids]
+    points = []
+    end: int | None = None
+    for st in getattr(goal, "state_list", None) or ():
+        pos = getattr(st, "position", None)
+        if pos is not None:
+            try:
+                x, y, _ = _position(pos)
+                points.append((x, y))
+            except (ValueError, TypeError, AttributeError):
+                pass
+        step = getattr(st, "time_step", None)
+        if step is not None:
+            last = int(step.end if hasattr(step, "end") else step)
+            end = last if end is None else max(end, last)
+    return tuple(lanelets), tuple(points), end
+
+
+def _ego(path: str, problems: Any) -> tuple[EgoStart, list[str]]:
+    items = sorted(getattr(problems, "planning_problem_dict", {}).items())
+    if not items:
+        raise ImportFailure(path, "planningProblem", "no planning problem in the file")
+    notes = []
+    if len(items) > 1:
+        notes.append(f"{len(items)} planning problems: the first (id {items[0][0]}) is the ego")
+    pid, problem = items[0]
+    st = problem.initial_state
+    try:
+        x, y, _ = _position(st.position)
+        heading, _ = _float(st.orientation)
+        speed, _ = _float(st.velocity)
+    except (ValueError, TypeError, AttributeError) as exc:
+        raise ImportFailure(path, f"planningProblem {pid} initialState", str(exc)) from exc
+    if not all(math.isfinite(v) for v in (x, y, heading, speed)):
+        raise ImportFailure(path, f"planningProblem {pid} initialState",
+                            "expected a finite position, orientation and velocity")
+    lanelets, points, end = _goal(problem)
+    return EgoStart(int(pid), int(st.time_step), x, y, heading, abs(speed), lanelets,
+                    points, end), notes
+
+
+def read_file(path: Path) -> RecordedFile:
+    """Read ``path`` (CommonRoad XML, 2018b/2020a/...); :class:`ImportFailure` names the
+    file and the element that is wrong; ``ImportError`` if commonroad-io is missing."""
+    name = str(path)
+    reader = _xml_reader()
+    try:
+        scenario, problems = reader(str(path)).open()
+    except Exception as exc:  # commonroad-io raises whatever its parsing hits
+        _precheck(path)  # a named error (XML line, root, missing element) if it finds one
+        raise ImportFailure(name, "commonRoad (commonroad-io's reader)",
+                            f"{type(exc).__name__}: {exc}") from exc
+    if not scenario.lanelet_network.lanelets or not getattr(
+            problems, "planning_problem_dict", None):
+        _precheck(path)  # parses the file again: only when something is missing
+    limits, sign_notes = _speed_signs(scenario.lanelet_network)
+    lanelets = []
+    for ll in scenario.lanelet_network.lanelets:
+        try:
+            lanelets.append(_lanelet(ll, limits))
+        except (ValueError, TypeError) as exc:
+            raise ImportFailure(name, f"lanelet {ll.lanelet_id}", str(exc)) from exc
+    obstacles = []
+    n_states = n_obstacles = 0
+    for static, group in ((False, scenario.dynamic_obstacles), (True, scenario.static_obstacles)):
+        for obs in group:
+            try:
+                record, uncertain = _obstacle(obs, static)
+            except (ValueError, TypeError, AttributeError, IndexError) as exc:
+                raise ImportFailure(name, f"obstacle {obs.obstacle_id}", str(exc)) from exc
+            obstacles.append(record)
+            n_states += uncertain
+            n_obstacles += int(uncertain > 0)
+    ego, notes = _ego(name, problems)
+    dt_s = float(scenario.dt)
+    if not (math.isfinite(dt_s) and dt_s > 0.0):
+        raise ImportFailure(name, "commonRoad timeStepSize", f"expected > 0, got {dt_s}")
+    country = str(getattr(getattr(scenario, "scenario_id", None), "country_id", "") or "ZAM")
+    return RecordedFile(name, dt_s, tuple(lanelets), tuple(obstacles), ego,
+                        UncertainCount(n_states, n_obstacles), (*notes, *sign_notes),
+                        country.upper())
