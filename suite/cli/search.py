@@ -57,7 +57,7 @@ def _seed(text: str) -> int:
 
 
 def _samplers(text: str) -> list[str]:
-    from suite.search.loop import SAMPLERS
+    from suite.search.samplers import SAMPLERS
 
     names = [t.strip() for t in text.split(",") if t.strip()]
     bad = [n for n in names if n not in SAMPLERS]
@@ -69,7 +69,7 @@ def _samplers(text: str) -> list[str]:
 
 def add_search_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """The ``search`` sub-command's arguments."""
-    from suite.search.loop import SAMPLERS
+    from suite.search.samplers import SAMPLERS
 
     s = sub.add_parser("search", help="search a catalog's [scenario.search] spaces for "
                                       "failures (exit 1 when one is found)")

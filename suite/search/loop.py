@@ -6,10 +6,10 @@ For each family (:class:`~suite.search.space.Family`, in catalog order) one Optu
 stand-in (step 3):
 
 1. batch ``b``: the study's sampler is made anew with a seed derived from
-   (``seed``, family index, ``b``) (:func:`make_sampler`; QMC keeps ``seed``: its
-   scrambled Sobol sequence is indexed by trial), so what it draws depends only on the
-   seed and on the trials told so far, never on this process's history: a resumed
-   search draws what an uninterrupted one draws;
+   (``seed``, family index, ``b``) (:func:`~suite.search.samplers.make_sampler`; a
+   Sobol sequence keeps one seed per study and is indexed by the points drawn), so what
+   it draws depends only on the seed and on the trials told so far, never on this
+   process's history: a resumed search draws what an uninterrupted one draws;
 2. it asks until it has ``min(batch_size, budget - runs)`` points the catalog accepts
    (:func:`~suite.search.space.build_point`); a refused point is told as failed with
    its reason and counted (at most ``max_refusals`` per family);
@@ -50,19 +50,18 @@ from reports.record import RunRecord, load_run
 from suite.catalog import Scenario
 from suite.exec.signals import StopRequest
 from suite.search.journal import BatchedJournal, open_journal
+from suite.search.samplers import SAMPLERS, make_sampler
 from suite.search.space import Family, Param, Refused, build_point, trial_name
 
 __all__ = ["SAMPLERS", "BatchRunner", "FamilyResult", "SearchSettings", "TrialResult",
            "failure_mode", "make_sampler", "open_storage", "search_family"]
 
-SAMPLERS = ("tpe", "cmaes", "random", "qmc")
 REFUSED = "refused"
 INTERRUPTED = "interrupted"
 VALUE_CAP = 1e9  # +inf robustness (no criterion in force) is told as this
 # The optimiser is told the soft minimum of the margins at this temperature (None: the
 # robustness itself); see :func:`objective`.
 SOFTMIN_TAU: float | None = 1.0
-TPE_STARTUP_TRIALS = 6
 PHASES = {1: "left", -1: "right", 0: "lane", 2: "follow"}
 
 # The batch of scenarios -> their records in the same order; None: stopped.
@@ -157,31 +156,6 @@ def open_storage(path: str) -> tuple[optuna.storages.BaseStorage, BatchedJournal
     warnings.filterwarnings("ignore", category=FutureWarning, module="optuna")
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     return open_journal(path)
-
-
-def _derived_seed(seed: int, family_index: int, batch: int) -> int:
-    return (seed * 1_000_003 + family_index * 10_007 + batch * 7_919 + 1) % (2 ** 31 - 1)
-
-
-def make_sampler(kind: str, seed: int, family_index: int, batch: int
-                 ) -> optuna.samplers.BaseSampler:
-    """The sampler of batch ``batch`` (module doc)."""
-    s = _derived_seed(seed, family_index, batch)
-    if kind == "tpe":
-        return optuna.samplers.TPESampler(seed=s, n_startup_trials=TPE_STARTUP_TRIALS,
-                                          multivariate=True, warn_independent_sampling=False)
-    if kind == "cmaes":
-        return optuna.samplers.CmaEsSampler(
-            seed=s, warn_independent_sampling=False,
-            independent_sampler=optuna.samplers.RandomSampler(seed=s))
-    if kind == "qmc":
-        return optuna.samplers.QMCSampler(qmc_type="sobol", scramble=True,
-                                          seed=seed + family_index,
-                                          warn_independent_sampling=False,
-                                          warn_asynchronous_seeding=False)
-    if kind == "random":
-        return optuna.samplers.RandomSampler(seed=s)
-    raise ValueError(f"sampler: expected one of {SAMPLERS}, got {kind!r}")
 
 
 def _suggest(trial: optuna.Trial, p: Param) -> Any:
