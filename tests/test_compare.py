@@ -282,3 +282,26 @@ def test_tolerances_validation(tmp_path: Path) -> None:
     bad.write_text("[timing]\nstep_ms_p99 = 0.5\n")
     with pytest.raises(ValueError, match="step_ms_p99"):
         Tolerances.from_toml(bad)
+
+
+def test_the_page_overlays_base_and_new_of_a_regressed_metric(base: Path, tmp_path: Path
+                                                               ) -> None:
+    import numpy as np
+
+    new = _copy(base, tmp_path)
+    _rerun(new, "lane_change_left__ctrl_a", _scale_lat_dev(1.5))
+    compare_runs(base, new, tmp_path / "cmp")
+    page = (tmp_path / "cmp" / "compare.html").read_text()
+    found = re.search(r'<div class="overlay" data-key="lane_change_left \[ctrl_a\]">(.*?)</div>',
+                      page, re.S)
+    assert found is not None
+    svg = found.group(1)
+    assert svg.count("<path") >= 2 and "base (" in svg and "new (" in svg
+    # the new run's curve reaches 1.5 times the base's extreme on the chart's y axis
+    y1 = float(re.search(r'data-y1="([-0-9.e]+)"', svg).group(1))  # type: ignore[union-attr]
+    dev = dict(sr.catalog_records())["lane_change_left__ctrl_a"].trace.ego.lat_dev_m
+    assert y1 >= 1.5 * float(np.nanmax(dev)) - 1e-9
+    # identical runs draw nothing
+    same = _copy(base, tmp_path, "same")
+    compare_runs(base, same, tmp_path / "cmp2")
+    assert 'class="overlay"' not in (tmp_path / "cmp2" / "compare.html").read_text()

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from reports.compare.findings import GATING_CATEGORIES, GOOD_KINDS, CompareRow
+from reports.compare.overlay import overlays_html
 from reports.manifest import Manifest
 from reports.record.codec import to_plain, write_text_atomic
 from reports.tables import RunEntry
@@ -204,6 +205,7 @@ th,td{border:1px solid #e2e8f0;padding:3px 8px;font-size:13px;text-align:left}
 th{background:#f8fafc}td.num{text-align:right;font-variant-numeric:tabular-nums}
 tr.reg td{background:#fef2f2}tr.warn td{background:#fffbeb}tr.good td{background:#f0fdf4}
 h2{font-size:16px;margin:22px 0 6px}.none{color:#94a3b8;font-style:italic}
+.overlay{background:#fff;display:inline-block;margin:4px 8px 4px 0}
 """
 
 
@@ -329,6 +331,9 @@ def write_compare_html(result: CompareResult, path: Path, base: Sequence[RunEntr
         f"{len(result.missing)} missing · {len(result.added)} new · "
         f"{len(result.warnings)} warnings · generated {esc(now)}</div></header><main>",
         _table(result.regressions, "Regressions (behaviour; gate)", links),
+        overlays_html([*result.regressions,
+                       *(r for c, _ in CHANGED_TESTS for r in result.of_category(c))],
+                      base, new),
         *(_table(result.of_category(c), f"{t} (do not gate)", links) for c, t in CHANGED_TESTS),
         _timing_table(result),
         _table(result.warnings, "Warnings (timing, health)", links),

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reports.charts import esc, fmt
 from reports.geometry import box_corners, ego_box_corners
-from reports.html.charts import esc, fmt
 from reports.html.marks import Mark
 from reports.record import (
     AGENT_NAMES,

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from reports.html.charts import esc, fmt
+from reports.charts import esc, fmt
 from reports.html.links import Links
 from reports.record import Failure, MetricValue
 from reports.tables import RunEntry

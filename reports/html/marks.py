@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from reports.html.charts import fmt
+from reports.charts import fmt
 from reports.tables import RunEntry
 
 MARK_COLOURS = {"collision": "#dc2626", "offroad_s": "#ea580c", "min_ttc_s": "#db2777"}

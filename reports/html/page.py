@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from reports.html.charts import PALETTE, Series, esc, fmt, line_chart
+from reports.charts import PALETTE, Series, esc, fmt, line_chart
 from reports.html.failures import STATUS_ORDER, badge, failures_section, log_link
 from reports.html.links import Links
 from reports.html.style import CSS

@@ -14,8 +14,8 @@ the first was, and the collisions of replayed cars driving into the ego (not at 
 
 from __future__ import annotations
 
+from reports.charts import esc, fmt
 from reports.html.birdseye import birdseye_svg
-from reports.html.charts import esc, fmt
 from reports.html.failures import badge, failure_detail, log_link, value_vs_limit, when
 from reports.html.links import STYLE, Links
 from reports.html.marks import Mark, failure_marks

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reports.html.charts import PALETTE, Line, Series, esc, fmt, line_chart
+from reports.charts import PALETTE, Line, Series, esc, fmt, line_chart
 from reports.html.marks import Mark
 from reports.metrics.evaluate import REQUIRED_METRICS
 from reports.record import RunRecord, Verdict

@@ -28,7 +28,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from reports.html.charts import esc, fmt
+from reports.charts import esc, fmt
 from reports.html.links import RUN_PAGES, Links
 from reports.html.style import CSS
 from reports.record import RRD

@@ -1,7 +1,7 @@
 """``paper.html``: the paper's figures redrawn from our runs, each with its numbers, the
 paper's value beside ours and whether its finding holds.
 
-One self-contained page (inline SVG from :mod:`reports.html.charts`, the report's
+One self-contained page (inline SVG from :mod:`reports.charts`, the report's
 stylesheet, no script, nothing from the network). Sections follow the paper: the
 findings and the numbers first, then Figs. 9-10 (J1/J2/J3 on the straight road),
 12-13 (preview on the curve), 14-15 (C/GMRES against Ipopt) and the obstacles along a
@@ -16,8 +16,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from reports.charts import PALETTE, Line, Series, cdf_chart, esc, line_chart
 from reports.html.birdseye import birdseye_svg
-from reports.html.charts import PALETTE, Line, Series, cdf_chart, esc, line_chart
 from reports.html.style import CSS
 from reports.paper.findings import Finding, NumberRow, num
 from reports.paper.measures import STEER_CUTOFF_HZ

@@ -1,5 +1,7 @@
-"""Inline SVG charts for report.html: line charts and CDFs, decimated so that a page of
-hundreds of runs stays small. No scripts, no external resources."""
+"""Inline SVG charts for every page hwyeval writes (report, run pages, compare, search,
+paper): line charts and CDFs, decimated so that a page of hundreds of runs stays small.
+No scripts, no external resources. Below the renderers in the layers, so that each of
+them draws with the same charts."""
 
 from __future__ import annotations
 
