@@ -17,6 +17,14 @@ more is dispatched, the running processes and their groups get SIGTERM then SIGK
 (:mod:`suite.exec.worker`), their staging directories are removed, no record is
 written for them (they did not finish: ``--resume`` runs them again), and the
 forkserver is stopped.
+
+The forkserver dying mid-run loses no result: a running scenario process keeps the
+write end of its own status pipe, so the parent hears of it when it ends, not when the
+forkserver dies (exit code 255, its published record kept:
+tests/test_reliability_forkserver.py kills the forkserver mid-run), and the next start
+brings up a new forkserver. A start that meets a forkserver still dying (its pipe
+closed: EOFError, ConnectionError) is tried once more on a new one, so that its death is
+not blamed on the scenario.
 """
 
 from __future__ import annotations
@@ -141,12 +149,25 @@ class LocalExecutor:
         try:
             remove_path(job.run_dir)
             discard_staging(job.out_dir, job.name)
-            proc = self.ctx.Process(target=_worker_main, args=(job,), name=job.name)
-            proc.start()
+            proc = self._start_process(job)
         except Exception:  # noqa: BLE001 - one job that cannot start is that job's error
             return write_failure(job, "error", "could not start the scenario process:\n"
                                  + traceback.format_exc())
         return _Running(job, proc, time.monotonic())
+
+    def _start_process(self, job: RunJob) -> Any:
+        """The started process of ``job``, tried once more on a new forkserver when the
+        old one is gone or dying (module doc)."""
+        proc = self.ctx.Process(target=_worker_main, args=(job,), name=job.name)
+        try:
+            proc.start()
+        except (EOFError, ConnectionError):
+            if self.start_method != "forkserver":
+                raise
+            stop_forkserver()
+            proc = self.ctx.Process(target=_worker_main, args=(job,), name=job.name)
+            proc.start()
+        return proc
 
     def _finish(self, item: _Running, killed: str | None) -> RunRecord | None:
         """The record of a process that ended (or was killed: ``killed`` says why); None
