@@ -1,5 +1,6 @@
-"""hwyeval bench's pieces: its catalogs, figures and targets, the extrapolation-error
-arithmetic (known answers), and one real command timed (SUMO test)."""
+"""hwyeval bench's pieces: its catalogs, figures and summary, the extrapolation-error
+arithmetic (known answers), and one real command timed (SUMO test); the targets and the
+whole quick bench: tests/test_bench_targets.py."""
 
 from __future__ import annotations
 
@@ -9,11 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from suite.bench import TARGETS, summary_lines, targets
-from suite.bench.catalogs import MATRIX_CATALOG, TARGET_CATALOG, with_defaults
+from suite.bench import BenchOptions, BenchResult, _solver_targets, summary_lines
+from suite.bench.account import account
+from suite.bench.catalogs import MATRIX_CATALOG, TARGET_CATALOG, dense_catalog, with_defaults
 from suite.bench.command import CommandTiming, RunFigures, StepStats, run_command
-from suite.bench.floor import FloorRun, bound, floor_study
+from suite.bench.floor import FloorRun, bound, floor_study, glue_per_step_us
 from suite.bench.multirate import _Frame, extrapolation_errors
+from suite.bench.targets import judge
 from suite.catalog import load_catalog
 
 
@@ -31,6 +34,14 @@ def test_catalogs(tmp_path: Path) -> None:
     assert sum(s.duration_s for s in target) == pytest.approx(160.0)
     with pytest.raises(ValueError):
         with_defaults("[[scenario]]\n", sumo_step_s=0.02)
+    (tmp_path / "d.toml").write_text(dense_catalog(24, 40.0))
+    dense = load_catalog(tmp_path / "d.toml").scenarios
+    assert len(dense) == 24 and sum(s.duration_s for s in dense) == pytest.approx(960.0)
+    assert sorted(s.traffic.seed for s in dense if s.traffic) == list(range(3, 27))
+    assert dense_catalog(4, 40.0) == TARGET_CATALOG
+    for bad in ((0, 40.0), (2, 0.0)):
+        with pytest.raises(ValueError):
+            dense_catalog(*bad)
 
 
 def test_step_stats_known_answers() -> None:
@@ -51,48 +62,54 @@ def test_step_stats_known_answers() -> None:
                       runs=())
 
 
-def _figures(rtf: float, p99_us: float) -> dict:  # type: ignore[type-arg]
-    steps = {k: {"n": 10, "p50_us": 100.0, "p95_us": 150.0, "p99_us": p99_us,
+def _figures() -> dict:  # type: ignore[type-arg]
+    steps = {k: {"n": 10, "p50_us": 100.0, "p95_us": 150.0, "p99_us": 240.0,
                  "max_us": 400.0}
              for k in ("controller_step", "behaviour_and_controller", "behaviour", "dynamics")}
     run = {"scenario": "a", "realtime_factor": 30.0, "peak_rss_mb": 210.0}
-    wall = 160.0 / rtf
-    command = {"sim_s": 160.0, "wall_s": wall, "realtime_factor": rtf,
-               "runs_realtime_factor": rtf * 1.5, "runs_span_s": wall / 1.5,
+    wall = 160.0 / 55.0
+    command = {"sim_s": 160.0, "wall_s": wall, "realtime_factor": 55.0,
+               "runs_realtime_factor": 55.0 * 1.5, "runs_span_s": wall / 1.5,
                "before_runs_s": wall / 4, "after_runs_s": wall - wall / 1.5 - wall / 4,
                "steps_us": steps, "runs": [run]}
     ratio = {"raw": {"p50_s": 35.0, "var_s2": 500.0},
              "min_of_repeats": {"p50_s": 33.0, "var_s2": 2000.0},
              "min_of_repeats_with_obstacle": {"p50_s": 30.0, "var_s2": 4000.0}}
-    return {"machine": {}, "load_start": [0.1, 0.1, 0.1], "load_end": [0.2, 0.1, 0.1],
+    return {"machine": {"cpus": 2, "processor": "x86_64", "python": "3.11"},
+            "load_start": [0.1, 0.1, 0.1], "load_end": [0.2, 0.1, 0.1], "elapsed_s": 80.0,
             "controller": {"outer_update": {"p50_us": 24.0, "p99_us": 40.0},
                            "control_step": {"p50_us": 110.0, "p99_us": 150.0}},
             "solvers": {"repeats": 3, "cgmres": {"raw": {"p50_s": 7e-5}},
                         "ipopt_barrier": {"raw": {"p50_s": 2.6e-3}},
                         "ipopt_barrier_over_cgmres": ratio, "ipopt_hard_over_cgmres": ratio},
-            "commands": {"target_jobs1_log": command, "target_jobs1_nolog": command,
-                         "target_jobs2_log": command, "matrix_jobs1_log": command,
+            "commands": {"dense_jobs1_log": command, "catalog_jobs2_log": command,
+                         "floor": {"bound": {"wall_s": 2.0, "realtime_factor": 80.0,
+                                             "glue_share": 0.3}},
                          "jobs2_over_jobs1": {"whole_command": 1.5, "scenario_phase": 1.8},
                          "logging_overhead": 1.05}}
 
 
-def test_targets_and_summary() -> None:
-    fig = _figures(rtf=55.0, p99_us=240.0)
-    got = targets(fig)
-    assert set(got) == set(TARGETS)
-    assert got["realtime_factor_jobs1_log"]["met"] and got["controller_step_p99_us"]["met"]
-    assert got["ipopt_over_cgmres_p50"]["met"] and got["ipopt_over_cgmres_var"]["met"]
-    assert got["ipopt_over_cgmres_var"]["value"] == 2000.0  # the per-update minimum's
-    assert not got["jobs2_over_jobs1"]["met"]
-    fig["targets"] = got
-    text = "\n".join(summary_lines(fig))
-    assert "TARGET realtime_factor_jobs1_log: 55.00 (target >= 50) -> met" in text
-    assert "TARGET jobs2_over_jobs1: 1.50 (target >= 1.7) -> NOT met" in text
+def test_solver_targets_and_summary() -> None:
+    """The solver figures are judged as before (the per-update minimum's variance), and
+    the summary prints every part present and a line per target."""
+    fig = _figures()
+    measured = _solver_targets(fig["solvers"])
+    assert [m.value for m in measured] == [35.0, 2000.0]
+    got = {r.target.name: r for r in judge(measured)}
+    assert got["ipopt_over_cgmres_p50"].met and got["ipopt_over_cgmres_var"].met
+    assert not got["one_run_realtime_factor"].measured
+    result = BenchResult(BenchOptions(), fig, results=judge(measured))
+    text = "\n".join(summary_lines(result))
+    assert "TARGET ipopt_over_cgmres_p50: x35.00 (target >= x30; issue #11) -> met" in text
+    assert ("TARGET one_run_realtime_factor: not measured (not part of this bench run) "
+            "(target >= x100; issue #25) -> NOT met") in text
     assert "(0.73 s before the first run, 1.94 s of runs, 0.24 s after the last)" in text
     assert "variance x2000; with it: variance x4000" in text  # the pooled one is judged
-    slow = targets(_figures(rtf=20.0, p99_us=300.0))
-    assert not slow["realtime_factor_jobs1_log"]["met"]
-    assert not slow["controller_step_p99_us"]["met"]
+    assert "logging on / off (dense runs, --jobs 1): x1.05" in text
+    assert "targets: 2 of 8 met" in text
+    skipped = _solver_targets({"skipped": "no casadi"})
+    assert all(not m.value == m.value and m.why_not == "no casadi" for m in skipped)
+    assert "targets: not judged" in "\n".join(summary_lines(BenchResult(BenchOptions(), fig)))
 
 
 def _frames(n: int, step_s: float, accel: float) -> list[_Frame]:
@@ -137,6 +154,18 @@ def test_a_real_command_is_timed(tmp_path: Path) -> None:
     assert all(r.peak_rss_mb > 50.0 and 0.0 < r.stages_s < r.wall_s for r in timing.runs)
     st = timing.steps["controller_step"]
     assert st.n == 200 and 0.0 < st.p50_us <= st.p99_us <= st.max_us
+    # results.csv's step columns, and when each run ran (file times, ~4 ms granularity)
+    for r in timing.runs:
+        assert 0.0 < r.step_p99_ms <= r.step_max_ms
+        assert r.start_epoch_s < r.loop_end_epoch_s <= r.end_epoch_s + 0.01
+        assert r.span_s == pytest.approx(r.wall_s + r.after_loop_s)
+    assert timing.lines and timing.lines[0].text.startswith("hwyeval ")
+    assert any(line.text.startswith("[2/2] ") for line in timing.lines)
+    parts = account(timing)
+    assert parts.runs == 2 and parts.unaccounted_s == pytest.approx(0.0, abs=1e-9)
+    assert parts.to_first_line_s > 0.0 and parts.runs_log_s == 0.0  # --no-log
+    assert parts.runs_wall_s == pytest.approx(sum(r.wall_s for r in timing.runs))
+    assert min(v for _, v in parts.parts_s) > -0.01
     with pytest.raises(FileExistsError):
         run_command(catalog, tmp_path / "out", jobs=1, log=False)
 
@@ -144,8 +173,12 @@ def test_a_real_command_is_timed(tmp_path: Path) -> None:
 def test_floor_bound_known_answers() -> None:
     """Two measured runs with 0.5 and 0.7 s of glue (mean 0.6 s) bound a 4-run, 160 s
     command of 6.4 s to 6.4 - 4 x 0.6 = 4.0 s: x40 real time, glue 37.5 % of it."""
-    runs = [FloorRun("a", "pass", 1.0, 0.8, 0.2, 0.1), FloorRun("b", "pass", 1.2, 1.0, 0.2, 0.1)]
+    runs = [FloorRun("a", "pass", 1.0, 0.8, 0.2, 0.1, steps=2000),
+            FloorRun("b", "pass", 1.2, 1.0, 0.2, 0.1, steps=2000)]
     assert [r.glue_s for r in runs] == pytest.approx([0.5, 0.7])
+    assert [r.glue_per_step_us for r in runs] == pytest.approx([250.0, 350.0])
+    assert glue_per_step_us(runs) == pytest.approx(300.0)
+    assert math.isnan(FloorRun("z", "pass", 1.0, 0.8, 0.2, 0.1).glue_per_step_us)
     floor = {"runs": [{**r.__dict__, "glue_s": r.glue_s} for r in runs]}
     command = {"wall_s": 6.4, "sim_s": 160.0, "runs": [{}] * 4}
     got = bound(floor, command)
@@ -173,5 +206,10 @@ def test_the_floor_study_times_real_runs(tmp_path: Path) -> None:
         assert r["kernel_s"] > 0.0 and r["sumo_s"] > 0.0 and r["glue_s"] > 0.0
         assert r["kernel_s"] + r["sumo_s"] + r["glue_s"] == pytest.approx(r["loop_s"])
         assert r["loop_s"] < r["run_s"]
+        assert r["steps"] == 100
+        assert r["glue_per_step_us"] == pytest.approx(r["glue_s"] / 100 * 1e6)
+    assert floor["preload_s"] > 0.0
+    assert floor["glue_per_step_us"] == pytest.approx(
+        sum(r["glue_s"] for r in floor["runs"]) / 200 * 1e6)
     with pytest.raises(FileExistsError):
         floor_study(catalog, tmp_path / "out")

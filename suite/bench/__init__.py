@@ -1,28 +1,31 @@
-"""``hwyeval bench``: issue 11's speed and memory targets, measured in one run, quoted as
-ratios next to their targets (these machines are shared: every ratio is taken within
-this one invocation, and the machine's load average is recorded at its start and end).
+"""``hwyeval bench``: the speed targets of issues 11 and 25, measured in one run and
+judged (:mod:`suite.bench.targets`), with the machine's load at its start and end (these
+machines are shared: every ratio is taken within this one invocation). docs/bench.md
+says how to read it.
 
-Parts (each a dict of the returned figures, ready for JSON):
+Phases (:func:`run_all`, a progress line each, with the time since the start):
 
 1. ``controller``: the two-loop controller on the plant-only harness
    (:func:`suite.bench.controller.run_benchmark`): one C/GMRES outer update and the whole
    control step, p50/p95/p99/max;
 2. ``solvers``: C/GMRES vs the Ipopt NMPC on the same OCP, Ipopt warm-started with the
    exact Hessian and MUMPS (:func:`suite.bench.solvers.solver_comparison`): p50 and
-   variance ratios, raw and per-update minimum over repeats (skipped without CasADi);
+   variance ratios, raw and per-update minimum over repeats (not measured without
+   CasADi);
 3. ``extrapolation``: the multi-rate world's extrapolation error against SUMO at the
-   control rate (:mod:`suite.bench.multirate`);
-4. ``floor``: the target catalog's runs with timers around the compiled C/GMRES kernel
-   and SUMO's step, and the third-party imports alone (:mod:`suite.bench.floor`): what
-   the target command would take with no Python between them (the 50x target's floor);
-5. ``commands``: whole ``hwyeval run`` commands in fresh processes
-   (:mod:`suite.bench.command`) on the fixed catalogs of :mod:`suite.bench.catalogs`:
-   the target catalog with logs at ``--jobs 1`` (the 50x target), without logs, with
-   logs at ``--jobs 2``; the 12-scenario matrix with logs at ``--jobs 1``: real-time
-   factors of the whole command and of its scenario phase, per-run wall and peak RSS,
-   per-step times inside SUMO runs.
+   control rate (:mod:`suite.bench.multirate`; not with ``--quick``);
+4. ``commands``: whole ``hwyeval run`` commands in fresh processes
+   (:mod:`suite.bench.command`) after an untimed warm-up: the dense target
+   (:func:`suite.bench.catalogs.dense_catalog`: two_loop, 3 lanes, 2400 veh/h, a stalled
+   car) with ``seeds`` traffic seeds at ``--jobs 1`` with logs (the one-run figures,
+   :class:`suite.bench.figures.DenseRunFigures`); the floor study on the same catalog
+   (:mod:`suite.bench.floor`: the Python between SUMO's step and the C/GMRES kernel);
+   the dense catalog of ``catalog_runs`` runs at ``--jobs 1`` and ``--jobs 2`` with logs
+   (the whole command, its wall-time account and the scaling,
+   :class:`suite.bench.figures.CommandFigures`); without ``--quick`` also the dense
+   seeds without logs (the logging overhead) and the 12-scenario matrix.
 
-``summary_lines`` prints one line per target: measured, target, met or not.
+:func:`summary_lines` prints the figures and one line per target: met or not.
 """
 
 from __future__ import annotations
@@ -33,19 +36,19 @@ import os
 import platform
 import tempfile
 import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from suite.bench.catalogs import MATRIX_CATALOG, TARGET_CATALOG
+from suite.bench.catalogs import MATRIX_CATALOG, dense_catalog
 from suite.bench.command import CommandTiming, run_command
+from suite.bench.figures import CommandFigures, DenseRunFigures, FloorFigures, measured_targets
+from suite.bench.summary import summary_lines
+from suite.bench.targets import TARGETS, Measured, TargetResult, all_met, judge
 
-TARGETS = {
-    "realtime_factor_jobs1_log": (">=", 50.0),
-    "controller_step_p99_us": ("<=", 250.0),
-    "ipopt_over_cgmres_p50": (">=", 30.0),
-    "ipopt_over_cgmres_var": (">=", 1000.0),
-    "jobs2_over_jobs1": (">=", 1.7),
-}
+__all__ = ["QUICK", "TARGETS", "BenchOptions", "BenchResult", "Progress", "run_all",
+           "summary_lines", "to_json"]
 
 WARMUP_CATALOG = """
 [defaults]
@@ -61,6 +64,93 @@ traffic = { vehicles_per_hour = 1200, seed = 1 }
 """
 
 
+@dataclass(frozen=True)
+class BenchOptions:
+    """What one bench run measures: ``seeds`` dense runs of ``run_duration_s`` (the
+    one-run figures and the floor study), ``catalog_runs`` of them for the whole command
+    (``--jobs 1`` and ``--jobs 2``; the ``seeds`` command is reused when equal), the
+    solver comparison's repeats and duration; ``quick`` leaves out the parts no target
+    is judged on (extrapolation, the no-log command, the matrix); without
+    ``include_runner`` no SUMO (phases 3, 4), without ``include_ipopt`` no phase 2."""
+
+    seeds: int = 4
+    catalog_runs: int = 24
+    run_duration_s: float = 40.0
+    solver_repeats: int = 5
+    solver_duration_s: float = 6.0
+    quick: bool = False
+    include_runner: bool = True
+    include_ipopt: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("seeds", "catalog_runs", "solver_repeats"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        for name in ("run_duration_s", "solver_duration_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+
+    @property
+    def judged(self) -> bool:
+        """Whether the targets are judged (not for the controller part alone)."""
+        return self.include_runner or self.include_ipopt
+
+    def phases(self) -> int:
+        """How many phases :func:`run_all` announces."""
+        n = 1 + int(self.include_ipopt)
+        if self.include_runner:
+            n += 4 + int(self.catalog_runs != self.seeds)  # warm-up, dense, floor, [M], jobs 2
+            n += 0 if self.quick else 3  # extrapolation, no log, matrix
+        return n
+
+
+QUICK = BenchOptions(seeds=2, catalog_runs=2, run_duration_s=4.0, solver_repeats=1,
+                     solver_duration_s=2.0, quick=True)
+
+
+class Progress:
+    """``bench [  12.3 s] 3/9 what``: a line per phase, through ``print_fn`` (flushed by
+    the caller's printer), the time since the bench started."""
+
+    def __init__(self, print_fn: Callable[[str], None] | None, total: int) -> None:
+        self.print_fn = print_fn
+        self.total = total
+        self.done = 0
+        self.t0 = time.perf_counter()
+
+    def elapsed_s(self) -> float:
+        return time.perf_counter() - self.t0
+
+    def _say(self, text: str) -> None:
+        if self.print_fn is not None:
+            self.print_fn(f"bench [{self.elapsed_s():7.1f} s] {text}")
+
+    def phase(self, text: str) -> None:
+        self.done += 1
+        self._say(f"{self.done}/{self.total} {text} ...")
+
+    def note(self, text: str) -> None:
+        self._say(f"    {text}")
+
+
+@dataclass(frozen=True)
+class BenchResult:
+    """One bench run: ``figures`` (every part, JSON-ready, module docstring), issue 25's
+    typed figures (None where not measured) and the targets' results (empty when the
+    targets are not judged: the controller part alone)."""
+
+    options: BenchOptions
+    figures: dict[str, Any]
+    dense: DenseRunFigures | None = None
+    floor: FloorFigures | None = None
+    command: CommandFigures | None = None
+    results: tuple[TargetResult, ...] = field(default_factory=tuple)
+
+    @property
+    def all_met(self) -> bool:
+        return all_met(self.results)
+
+
 def _load() -> list[float]:
     return [round(x, 2) for x in os.getloadavg()]
 
@@ -73,12 +163,12 @@ def _controller_timing() -> dict[str, Any]:
                                 "inner_loop_per_step", "residual_max", "fallbacks")}
 
 
-def _solvers(repeats: int) -> dict[str, Any]:
+def _solvers(repeats: int, duration_s: float) -> dict[str, Any]:
     if importlib.util.find_spec("casadi") is None:
         return {"skipped": "casadi not installed (pip install 'hwyeval[baselines]')"}
     from suite.bench.solvers import solver_comparison
 
-    return solver_comparison(repeats=repeats)
+    return solver_comparison(repeats=repeats, duration_s=duration_s)
 
 
 def _extrapolation() -> dict[str, Any]:
@@ -87,192 +177,129 @@ def _extrapolation() -> dict[str, Any]:
     return extrapolation_study()
 
 
-def _commands(tmp: Path) -> dict[str, Any]:
-    target, matrix = tmp / "target.toml", tmp / "matrix.toml"
-    target.write_text(TARGET_CATALOG)
-    matrix.write_text(MATRIX_CATALOG)
-    warm = tmp / "warmup.toml"
-    warm.write_text(WARMUP_CATALOG)
-    run_command(warm, tmp / "out_warmup", jobs=1, log=True)  # numba caches, untimed
-    runs: dict[str, CommandTiming] = {}
-    for label, catalog, jobs, log in (("target_jobs1_log", target, 1, True),
-                                      ("target_jobs1_nolog", target, 1, False),
-                                      ("target_jobs2_log", target, 2, True),
-                                      ("matrix_jobs1_log", matrix, 1, True)):
-        runs[label] = run_command(catalog, tmp / f"out_{label}", jobs=jobs, log=log)
-    one, two = runs["target_jobs1_log"], runs["target_jobs2_log"]
-    out: dict[str, Any] = {k: v.as_dict() for k, v in runs.items()}
+def _timed(progress: Progress, label: str, catalog: Path, out: Path, jobs: int,
+           log: bool) -> CommandTiming:
+    t = run_command(catalog, out, jobs=jobs, log=log)
+    progress.note(f"{label}: {t.sim_s:.0f} s simulated in {t.wall_s:.2f} s "
+                  f"(x{t.realtime_factor:.1f}), exit {t.exit_code}")
+    return t
+
+
+@dataclass(frozen=True)
+class _CommandsPart:
+    figures: dict[str, Any]
+    dense: DenseRunFigures
+    floor: FloorFigures
+    command: CommandFigures
+
+
+def _commands(tmp: Path, opts: BenchOptions, progress: Progress) -> _CommandsPart:
     from suite.bench.floor import bound, floor_study
 
-    floor = floor_study(target, tmp / "out_floor")
-    out["floor"] = {**floor, "bound": bound(floor, out["target_jobs1_log"])}
-    out["jobs2_over_jobs1"] = {"whole_command": one.wall_s / two.wall_s,
-                               "scenario_phase": (one.runs_span_s / two.runs_span_s
-                                                  if two.runs_span_s > 0 else float("nan"))}
-    out["logging_overhead"] = one.wall_s / runs["target_jobs1_nolog"].wall_s
-    return out
+    dur = opts.run_duration_s
+    dense_toml, catalog_toml = tmp / "dense.toml", tmp / "catalog.toml"
+    dense_toml.write_text(dense_catalog(opts.seeds, dur))
+    catalog_toml.write_text(dense_catalog(opts.catalog_runs, dur))
+    warm = tmp / "warmup.toml"
+    warm.write_text(WARMUP_CATALOG)
+    progress.phase("warm-up command (numba caches, untimed)")
+    run_command(warm, tmp / "out_warmup", jobs=1, log=True)
+    progress.phase(f"dense runs: {opts.seeds} x {dur:g} s, --jobs 1, logs on")
+    runs: dict[str, CommandTiming] = {}
+    runs["dense_jobs1_log"] = _timed(progress, "dense_jobs1_log", dense_toml,
+                                     tmp / "out_dense", 1, True)
+    progress.phase(f"floor study: the same {opts.seeds} runs with timers around the "
+                   "C/GMRES kernel and SUMO's step")
+    floor = floor_study(dense_toml, tmp / "out_floor")
+    if opts.catalog_runs != opts.seeds:
+        progress.phase(f"whole command: {opts.catalog_runs} dense runs, --jobs 1, logs on")
+        runs["catalog_jobs1_log"] = _timed(progress, "catalog_jobs1_log", catalog_toml,
+                                           tmp / "out_catalog1", 1, True)
+    jobs1 = runs.get("catalog_jobs1_log", runs["dense_jobs1_log"])
+    progress.phase(f"whole command: {opts.catalog_runs} dense runs, --jobs 2, logs on")
+    runs["catalog_jobs2_log"] = _timed(progress, "catalog_jobs2_log", catalog_toml,
+                                       tmp / "out_catalog2", 2, True)
+    if not opts.quick:
+        progress.phase(f"dense runs without logs: {opts.seeds} x {dur:g} s, --jobs 1")
+        runs["dense_jobs1_nolog"] = _timed(progress, "dense_jobs1_nolog", dense_toml,
+                                           tmp / "out_nolog", 1, False)
+        matrix = tmp / "matrix.toml"
+        matrix.write_text(MATRIX_CATALOG)
+        progress.phase("matrix: 12 runs of 20 s, --jobs 1, logs on")
+        runs["matrix_jobs1_log"] = _timed(progress, "matrix_jobs1_log", matrix,
+                                          tmp / "out_matrix", 1, True)
+    out: dict[str, Any] = {k: v.as_dict() for k, v in runs.items()}
+    out["floor"] = {**floor, "bound": bound(floor, out["dense_jobs1_log"])}
+    command = CommandFigures.of(jobs1, runs["catalog_jobs2_log"])
+    out["jobs2_over_jobs1"] = {"whole_command": command.jobs1_over_jobs2_whole_command,
+                               "scenario_phase": command.jobs1_over_jobs2_scenario_phase}
+    if "dense_jobs1_nolog" in runs:
+        out["logging_overhead"] = (runs["dense_jobs1_log"].wall_s
+                                   / runs["dense_jobs1_nolog"].wall_s)
+    return _CommandsPart(out, DenseRunFigures.of(runs["dense_jobs1_log"]),
+                         FloorFigures.of(floor), command)
 
 
-def run_all(include_runner: bool = True, include_ipopt: bool = True,
-            solver_repeats: int = 5) -> dict[str, Any]:
-    """Every part (module docstring); ``include_runner`` False skips SUMO (parts 3, 4)."""
+def _solver_targets(sv: dict[str, Any] | None) -> list[Measured]:
+    if sv is None:
+        return []
+    if "skipped" in sv:
+        why = str(sv["skipped"])
+        return [Measured("ipopt_over_cgmres_p50", float("nan"), why),
+                Measured("ipopt_over_cgmres_var", float("nan"), why)]
+    ratio = sv["ipopt_barrier_over_cgmres"]
+    # The variance is judged on each update's minimum over the repeats: the update
+    # sequence is deterministic, so that keeps the solvers' own variation (Ipopt's
+    # iteration counts) and drops the shared machine's preemptions, which at ~70 us
+    # per C/GMRES update dominate its raw variance (both are printed).
+    return [Measured("ipopt_over_cgmres_p50", float(ratio["raw"]["p50_s"])),
+            Measured("ipopt_over_cgmres_var", float(ratio["min_of_repeats"]["var_s2"]))]
+
+
+def run_all(options: BenchOptions | None = None,
+            print_fn: Callable[[str], None] | None = None) -> BenchResult:
+    """Every phase of ``options`` (module docstring), a progress line each through
+    ``print_fn``; the targets judged unless only the controller part ran."""
+    opts = options if options is not None else BenchOptions()
+    progress = Progress(print_fn, opts.phases())
     figures: dict[str, Any] = {"started": time.strftime("%Y-%m-%dT%H:%M:%S"),
+                               "options": asdict(opts),
                                "machine": {"cpus": os.cpu_count(),
                                            "processor": platform.processor()
                                            or platform.machine(),
                                            "python": platform.python_version()},
                                "load_start": _load()}
+    progress.phase("controller on the plant-only harness")
     figures["controller"] = _controller_timing()
-    if include_ipopt:
-        figures["solvers"] = _solvers(solver_repeats)
-    if include_runner:
-        figures["extrapolation"] = _extrapolation()
+    if opts.include_ipopt:
+        progress.phase(f"solvers: C/GMRES vs Ipopt, {opts.solver_repeats} repeat(s) of "
+                       f"{opts.solver_duration_s:g} s")
+        figures["solvers"] = _solvers(opts.solver_repeats, opts.solver_duration_s)
+    part: _CommandsPart | None = None
+    if opts.include_runner:
+        if not opts.quick:
+            progress.phase("extrapolation error: SUMO at 50 Hz against 10 Hz")
+            figures["extrapolation"] = _extrapolation()
         with tempfile.TemporaryDirectory(prefix="hwyeval-bench-") as tmp:
-            figures["commands"] = _commands(Path(tmp))
+            part = _commands(Path(tmp), opts, progress)
+        figures["commands"] = part.figures
     figures["load_end"] = _load()
-    figures["targets"] = targets(figures)
-    return figures
-
-
-def _check(name: str, value: float | None) -> dict[str, Any]:
-    op, limit = TARGETS[name]
-    met = value is not None and (value >= limit if op == ">=" else value <= limit)
-    return {"value": value, "target": f"{op} {limit:g}", "met": bool(met)}
-
-
-def targets(figures: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Each target of :data:`TARGETS` with the figure it is judged on."""
-    out: dict[str, dict[str, Any]] = {}
-    cmd = figures.get("commands")
-    if cmd:
-        t = cmd["target_jobs1_log"]
-        out["realtime_factor_jobs1_log"] = _check("realtime_factor_jobs1_log",
-                                                  t["realtime_factor"])
-        out["controller_step_p99_us"] = _check("controller_step_p99_us",
-                                               t["steps_us"]["controller_step"]["p99_us"])
-        out["jobs2_over_jobs1"] = _check("jobs2_over_jobs1",
-                                         cmd["jobs2_over_jobs1"]["whole_command"])
-    sv = figures.get("solvers")
-    if sv and "skipped" not in sv:
-        ratio = sv["ipopt_barrier_over_cgmres"]
-        out["ipopt_over_cgmres_p50"] = _check("ipopt_over_cgmres_p50", ratio["raw"]["p50_s"])
-        # The variance is judged on each update's minimum over the repeats: the update
-        # sequence is deterministic, so that keeps the solvers' own variation (Ipopt's
-        # iteration counts) and drops the shared machine's preemptions, which at ~70 us
-        # per C/GMRES update dominate its raw variance (both are printed).
-        out["ipopt_over_cgmres_var"] = _check("ipopt_over_cgmres_var",
-                                              ratio["min_of_repeats"]["var_s2"])
-    return out
-
-
-def _fmt(x: Any, digits: int = 1) -> str:
-    return f"{x:.{digits}f}" if isinstance(x, int | float) else str(x)
-
-
-def summary_lines(figures: dict[str, Any]) -> list[str]:
-    """Human-readable lines (the JSON has everything)."""
-    lines = [f"machine: {figures['machine']}; load average (1, 5, 15 min) at start "
-             f"{figures['load_start']}, at end {figures.get('load_end')}"]
-    c = figures["controller"]
-    ou, cs = c["outer_update"], c["control_step"]
-    lines.append(f"harness (plant only): C/GMRES outer update p50 {_fmt(ou.get('p50_us'))} us, "
-                 f"p99 {_fmt(ou.get('p99_us'))} us; control step p50 {_fmt(cs['p50_us'])} us, "
-                 f"p99 {_fmt(cs['p99_us'])} us")
-    lines += _solver_lines(figures.get("solvers"))
-    lines += _extrapolation_lines(figures.get("extrapolation"))
-    lines += _command_lines(figures.get("commands"))
-    for name, t in figures.get("targets", {}).items():
-        lines.append(f"TARGET {name}: {_fmt(t['value'], 2)} (target {t['target']}) -> "
-                     f"{'met' if t['met'] else 'NOT met'}")
-    return lines
-
-
-def _solver_lines(sv: dict[str, Any] | None) -> list[str]:
-    if not sv:
-        return []
-    if "skipped" in sv:
-        return [f"solvers: skipped ({sv['skipped']})"]
-    lines = []
-    for name in ("ipopt_barrier", "ipopt_hard"):
-        r = sv[f"{name}_over_cgmres"]
-        lines.append(f"{name} / C/GMRES: p50 x{_fmt(r['raw']['p50_s'])}, variance "
-                     f"x{_fmt(r['raw']['var_s2'], 0)} raw; per-update min of {sv['repeats']} "
-                     f"repeats: p50 x{_fmt(r['min_of_repeats']['p50_s'])}, variance "
-                     f"x{_fmt(r['min_of_repeats']['var_s2'], 0)}"
-                     + "".join(f"; {label}: variance x{_fmt(r[key]['var_s2'], 0)}"
-                               for label, key in (("without the obstacle",
-                                                   "min_of_repeats_without_obstacle"),
-                                                  ("with it", "min_of_repeats_with_obstacle"))
-                               if key in r))
-    cg = sv["cgmres"]["raw"]
-    lines.append(f"C/GMRES update p50 {cg['p50_s'] * 1e6:.1f} us; Ipopt (barrier) p50 "
-                 f"{sv['ipopt_barrier']['raw']['p50_s'] * 1e6:.0f} us")
-    return lines
-
-
-def _extrapolation_lines(ex: dict[str, Any] | None) -> list[str]:
-    if not ex:
-        return []
-    lines = []
-    for name, v in ex.items():
-        if not isinstance(v, dict):
-            continue
-        e = v["errors"]
-        lines.append(f"extrapolation {name} ({ex['sumo_step_s']} s SUMO vs 50 Hz): constant "
-                     f"speed p50 {e['velocity']['all']['p50_m']:.4f} m, p99 "
-                     f"{e['velocity']['all']['p99_m']:.4f} m, max "
-                     f"{e['velocity']['all']['max_m']:.3f} m (no extrapolation: p99 "
-                     f"{e['hold']['all']['p99_m']:.2f} m)")
-    return lines
-
-
-def _command_lines(cmd: dict[str, Any] | None) -> list[str]:
-    if not cmd:
-        return []
-    lines = []
-    for label in ("target_jobs1_log", "target_jobs1_nolog", "target_jobs2_log",
-                  "matrix_jobs1_log"):
-        t = cmd[label]
-        st = t["steps_us"]
-        lines.append(
-            f"{label}: {t['sim_s']:.0f} s simulated in {t['wall_s']:.2f} s -> "
-            f"x{t['realtime_factor']:.1f} real time over the whole command, "
-            f"x{t['runs_realtime_factor']:.1f} over the scenario phase "
-            f"({_fmt(t['before_runs_s'], 2)} s before the first run, {t['runs_span_s']:.2f} s "
-            f"of runs, {_fmt(t['after_runs_s'], 2)} s after the last); controller step "
-            f"p50 {_fmt(st['controller_step']['p50_us'])} / p99 "
-            f"{_fmt(st['controller_step']['p99_us'])} us, behaviour + controller p50 "
-            f"{_fmt(st['behaviour_and_controller']['p50_us'])} / p99 "
-            f"{_fmt(st['behaviour_and_controller']['p99_us'])} us; peak RSS "
-            f"{max(r['peak_rss_mb'] for r in t['runs']):.0f} MB")
-    m = cmd["matrix_jobs1_log"]
-    lines.append("matrix real-time factors per run (wall of the run, build to run.json): "
-                 + ", ".join(f"{r['scenario']} x{r['realtime_factor']:.0f}" for r in m["runs"]))
-    lines += _floor_lines(cmd.get("floor"), cmd["target_jobs1_log"])
-    j = cmd["jobs2_over_jobs1"]
-    lines.append(f"--jobs 2 / --jobs 1: x{j['whole_command']:.2f} whole command, "
-                 f"x{j['scenario_phase']:.2f} scenario phase; logging on / off: "
-                 f"x{cmd['logging_overhead']:.2f}")
-    return lines
-
-
-def _floor_lines(floor: dict[str, Any] | None, target: dict[str, Any]) -> list[str]:
-    if not floor:
-        return []
-    runs = floor["runs"]
-    n = len(runs)
-
-    def mean(key: str) -> float:
-        return float(sum(r[key] for r in runs) / n)
-
-    b = floor["bound"]
-    return [f"floor: third-party imports {floor['third_party_import_s']:.2f} s; per target run "
-            f"{mean('run_s'):.2f} s, of which the loop {mean('loop_s'):.2f} s = C/GMRES kernel "
-            f"{mean('kernel_s'):.3f} s + SUMO's step {mean('sumo_s'):.3f} s + the Python "
-            f"between them {mean('glue_s'):.2f} s; target_jobs1_log ({target['wall_s']:.2f} s) "
-            f"without that Python: {b['wall_s']:.2f} s -> x{b['realtime_factor']:.1f} real "
-            f"time (the 50x target's floor; the Python is {100 * b['glue_share']:.0f} % of "
-            f"the command)"]
+    figures["elapsed_s"] = progress.elapsed_s()
+    results: tuple[TargetResult, ...] = ()
+    if opts.judged:
+        measured = _solver_targets(figures.get("solvers"))
+        if part is not None:
+            measured += measured_targets(part.dense, part.floor, part.command)
+            figures["issue25"] = {"dense": asdict(part.dense), "floor": asdict(part.floor),
+                                  "command": part.command.as_dict()}
+        results = judge(measured)
+    figures["targets"] = [{**asdict(r.target), "comparison": r.target.comparison.value,
+                           "value": r.value, "met": r.met, "why_not": r.why_not}
+                          for r in results]
+    figures["all_met"] = all_met(results)
+    progress.note(f"done: {len(results)} target(s) judged")
+    return BenchResult(opts, figures, part.dense if part else None,
+                       part.floor if part else None, part.command if part else None, results)
 
 
 def to_json(figures: dict[str, Any]) -> str:

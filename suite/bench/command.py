@@ -12,8 +12,15 @@ Per command (:class:`CommandTiming`):
   start, imports, catalog checks and the workers' preload, until the first run starts)
   and ``after_runs_s`` (the last run's end to the command's: the reports, the exit) are
   the rest of ``wall_s``;
-* per run: wall (build, loop, judging, writing, Rerun log), its stage times, peak RSS of
-  its process [MB], status;
+* per run: ``wall_s`` (results.csv's: from the run's start to its loop's end and SUMO's
+  close: building and the loop; judging, the files, the Rerun log and run.json come
+  after it), its stage times, peak RSS of its process [MB], status, its step p99 and
+  max (results.csv's ``step_ms_p99``, ``step_ms_max``: behaviour + controller), and
+  when it ran on the wall clock: its loop's end (SUMO's output files, written at its
+  close), its start (that minus ``wall_s``) and its end (run.json written);
+* ``lines``: every line the command printed (stdout and stderr), stamped when the bench
+  read it, for :mod:`suite.bench.account`; ``manifest_epoch_s`` when the command wrote
+  its manifest last (after the reports);
 * per-step times pooled over the runs (trace columns): ``controller_step`` = the
   controller's ``step`` alone (``controller_s - obstacles_s``), ``behaviour_and_controller``
   = the trace's ``controller_s`` (what ``step_ms_*`` of the metrics is), ``behaviour`` and
@@ -22,7 +29,9 @@ Per command (:class:`CommandTiming`):
 
 from __future__ import annotations
 
+import csv
 import json
+import math
 import os
 import subprocess
 import sys
@@ -62,9 +71,11 @@ class StepStats:
 
 @dataclass(frozen=True)
 class RunFigures:
-    """One run: wall [s] of the whole run and of its recorded stages (behaviour,
-    controller, dynamics summed over its steps), simulated time [s], peak RSS of its
-    process [MB], Rerun log time [s]."""
+    """One run: wall [s] of the run (results.csv's ``wall_s``: build and loop) and of its
+    recorded stages (behaviour, controller, dynamics summed over its steps), simulated
+    time [s], peak RSS of its process [MB], Rerun log time [s], its behaviour +
+    controller step p99 and max [ms] (results.csv), and on the wall clock [epoch s]
+    its start, its loop's end and its end (run.json written); NaN where unknown."""
 
     scenario: str
     status: str
@@ -73,14 +84,43 @@ class RunFigures:
     sim_s: float
     peak_rss_mb: float
     log_s: float
+    step_p99_ms: float = math.nan
+    step_max_ms: float = math.nan
+    start_epoch_s: float = math.nan
+    loop_end_epoch_s: float = math.nan
+    end_epoch_s: float = math.nan
 
     def __post_init__(self) -> None:
         if self.wall_s < 0 or self.sim_s < 0:
             raise ValueError(f"{self.scenario}: negative wall_s or sim_s")
+        if self.end_epoch_s < self.loop_end_epoch_s - 0.01:  # file-time granularity
+            raise ValueError(f"{self.scenario}: its run.json predates its loop's end")
+
+    @property
+    def span_s(self) -> float:
+        """From the run's start to its run.json [s] (NaN where unknown)."""
+        return self.end_epoch_s - self.start_epoch_s
+
+    @property
+    def after_loop_s(self) -> float:
+        """After ``wall_s``: judging, the files, the Rerun log, run.json [s]."""
+        return self.end_epoch_s - self.loop_end_epoch_s
 
     @property
     def realtime_factor(self) -> float:
         return self.sim_s / self.wall_s if self.wall_s > 0 else float("nan")
+
+
+@dataclass(frozen=True)
+class StampedLine:
+    """A line the command printed, ``at_s`` seconds after it was started."""
+
+    at_s: float
+    text: str
+
+    def __post_init__(self) -> None:
+        if self.at_s < 0:
+            raise ValueError(f"at_s must be >= 0, got {self.at_s}")
 
 
 @dataclass(frozen=True)
@@ -97,6 +137,9 @@ class CommandTiming:
     steps: dict[str, StepStats] = field(default_factory=dict)
     before_runs_s: float = float("nan")
     after_runs_s: float = float("nan")
+    start_epoch_s: float = float("nan")
+    manifest_epoch_s: float = float("nan")
+    lines: tuple[StampedLine, ...] = ()
 
     def __post_init__(self) -> None:
         if self.jobs < 1:
@@ -120,6 +163,8 @@ class CommandTiming:
                 "after_runs_s": self.after_runs_s, "sim_s": self.sim_s,
                 "exit_code": self.exit_code, "realtime_factor": self.realtime_factor,
                 "runs_realtime_factor": self.runs_realtime_factor,
+                "start_epoch_s": self.start_epoch_s, "manifest_epoch_s": self.manifest_epoch_s,
+                "lines": [line.__dict__ for line in self.lines],
                 "runs": [{**r.__dict__, "realtime_factor": r.realtime_factor}
                          for r in self.runs],
                 "steps_us": {k: v.__dict__ for k, v in self.steps.items()}}
@@ -127,7 +172,7 @@ class CommandTiming:
 
 def run_command(catalog: Path, out: Path, jobs: int, log: bool) -> CommandTiming:
     """Run ``catalog`` through the command line into ``out`` (must not exist) and read
-    back what it wrote."""
+    back what it wrote; every line it prints is stamped as it arrives."""
     if out.exists():
         raise FileExistsError(f"{out} exists: the bench runs into fresh folders")
     args = [sys.executable, "-m", "suite", "run", str(catalog), "--out", str(out),
@@ -135,31 +180,80 @@ def run_command(catalog: Path, out: Path, jobs: int, log: bool) -> CommandTiming
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     epoch0 = time.time()  # the run files' mtimes are on this clock
     t0 = time.perf_counter()
-    proc = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True,
-                          check=False)
+    lines: list[StampedLine] = []
+    with subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                          stderr=subprocess.STDOUT, text=True, bufsize=1) as proc:
+        if proc.stdout is None:  # not with stdout=PIPE
+            raise RuntimeError("the command's output pipe is missing")
+        for text in proc.stdout:
+            lines.append(StampedLine(time.perf_counter() - t0, text.rstrip("\n")))
+        code = proc.wait()
     wall = time.perf_counter() - t0
-    if proc.returncode not in (0, 1):
-        raise RuntimeError(f"{' '.join(args)} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
-    runs, steps, (first_start, last_end) = _read_runs(out)
+    if code not in (0, 1):
+        tail = "\n".join(line.text for line in lines[-30:])
+        raise RuntimeError(f"{' '.join(args)} exited {code}:\n{tail}")
+    runs, steps = _read_runs(out)
+    first_start = min(r.start_epoch_s for r in runs) if runs else math.nan
+    last_end = max(r.end_epoch_s for r in runs) if runs else math.nan
     span = last_end - first_start if runs else 0.0
-    before = first_start - epoch0 if runs else float("nan")
-    after = epoch0 + wall - last_end if runs else float("nan")
+    manifest = out / "manifest.json"
     return CommandTiming(jobs=jobs, log=log, wall_s=wall, runs_span_s=span,
-                         sim_s=sum(r.sim_s for r in runs), exit_code=proc.returncode,
-                         runs=tuple(runs), steps=steps, before_runs_s=before,
-                         after_runs_s=after)
+                         sim_s=sum(r.sim_s for r in runs), exit_code=code,
+                         runs=tuple(runs), steps=steps, before_runs_s=first_start - epoch0,
+                         after_runs_s=epoch0 + wall - last_end, start_epoch_s=epoch0,
+                         manifest_epoch_s=(manifest.stat().st_mtime if manifest.exists()
+                                           else math.nan),
+                         lines=tuple(lines))
 
 
-def _read_runs(out: Path) -> tuple[list[RunFigures], dict[str, StepStats],
-                                   tuple[float, float]]:
-    """The runs, their pooled step times and (first run's start, last run's end) as
-    epoch seconds (file mtimes; nan, nan without runs)."""
+@dataclass(frozen=True)
+class _Row:
+    """results.csv's step times of one run [ms]."""
+
+    step_p99_ms: float
+    step_max_ms: float
+
+
+def _results_rows(out: Path) -> dict[str, _Row]:
+    """results.csv's ``step_ms_p99`` and ``step_ms_max`` by scenario (none without it)."""
+    path = out / "results.csv"
+    if not path.exists():
+        return {}
+
+    def num(text: str | None) -> float:
+        try:
+            return float(text) if text else math.nan
+        except ValueError:
+            return math.nan
+
+    with path.open(newline="") as f:
+        return {row["scenario"]: _Row(num(row.get("step_ms_p99")), num(row.get("step_ms_max")))
+                for row in csv.DictReader(f)}
+
+
+def _when(run_dir: Path, wall_s: float) -> tuple[float, float, float]:
+    """(start, loop end, end) of a run on the wall clock [epoch s]: the loop ended when
+    SUMO wrote its outputs at its close (else: when the route file was written, the
+    start being then), the run started ``wall_s`` before, it ended with its run.json."""
+    end = (run_dir / "run.json").stat().st_mtime
+    closed = [p.stat().st_mtime for p in (run_dir / "sumo").glob("*.xml")
+              if p.name != "routes.rou.xml"]
+    if closed:
+        loop_end = max(closed)
+        return loop_end - wall_s, loop_end, end
+    routes = run_dir / "sumo" / "routes.rou.xml"
+    start = routes.stat().st_mtime if routes.exists() else end - wall_s
+    return start, min(start + wall_s, end), end
+
+
+def _read_runs(out: Path) -> tuple[list[RunFigures], dict[str, StepStats]]:
+    """The runs (their wall-clock times from file mtimes) and their pooled step times."""
     import pyarrow.parquet as pq
 
     runs: list[RunFigures] = []
     pools: dict[str, list[np.ndarray]] = {"controller_step": [], "behaviour_and_controller": [],
                                           "behaviour": [], "dynamics": []}
-    starts, ends = [], []
+    rows = _results_rows(out)
     for run_json in sorted(out.glob("*/run.json")):
         run_dir = run_json.parent
         info = json.loads(run_json.read_text())
@@ -175,14 +269,15 @@ def _read_runs(out: Path) -> tuple[list[RunFigures], dict[str, StepStats],
         pools["behaviour"].append(beh)
         pools["dynamics"].append(dyn)
         log_s = outcome.get("log_s")
+        wall_s = float(outcome["wall_s"])
+        start, loop_end, end = _when(run_dir, wall_s)
+        row = rows.get(run_dir.name, _Row(math.nan, math.nan))
         runs.append(RunFigures(
-            scenario=run_dir.name, status=str(status), wall_s=float(outcome["wall_s"]),
+            scenario=run_dir.name, status=str(status), wall_s=wall_s,
             stages_s=float(np.nansum(both) + np.nansum(dyn)), sim_s=float(outcome["sim_time_s"]),
             peak_rss_mb=float(outcome["peak_rss_mb"]),
-            log_s=float(log_s) if isinstance(log_s, int | float) else float("nan")))
-        routes = run_dir / "sumo" / "routes.rou.xml"
-        starts.append((routes if routes.exists() else run_json).stat().st_mtime)
-        ends.append(run_json.stat().st_mtime)
+            log_s=float(log_s) if isinstance(log_s, int | float) else float("nan"),
+            step_p99_ms=row.step_p99_ms, step_max_ms=row.step_max_ms, start_epoch_s=start,
+            loop_end_epoch_s=loop_end, end_epoch_s=end))
     steps = {k: StepStats.of(np.concatenate(v)) for k, v in pools.items() if v}
-    bounds = (min(starts), max(ends)) if runs else (float("nan"), float("nan"))
-    return runs, steps, bounds
+    return runs, steps

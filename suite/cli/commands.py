@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from suite.cli.common import (
+    EXIT_FAIL,
     EXIT_INPUT,
     EXIT_OK,
     Output,
@@ -140,18 +141,47 @@ def cmd_view(args: argparse.Namespace) -> int:
     return open_logs(items)
 
 
-def cmd_bench(args: argparse.Namespace) -> int:
-    from suite.bench import run_all, summary_lines
+def bench_options(args: argparse.Namespace) -> Any:
+    """The :class:`suite.bench.BenchOptions` of ``hwyeval bench``'s arguments."""
+    from dataclasses import replace
 
-    figures = run_all(include_runner=not args.controller_only,
-                      include_ipopt=not args.controller_only)
+    from suite.bench import QUICK, BenchOptions
+
+    opts = QUICK if args.quick else BenchOptions()
+    if args.controller_only:
+        opts = replace(opts, include_runner=False, include_ipopt=False)
+    if args.seeds is not None:
+        opts = replace(opts, seeds=args.seeds)
+    if args.catalog_runs is not None:
+        opts = replace(opts, catalog_runs=args.catalog_runs)
+    return opts
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Exit 0 when every target is met (or none judged, or ``--no-fail``), 1 when one is
+    missed, 2 on bad input (an --out that cannot be written)."""
+    from suite.bench import run_all, summary_lines, to_json
+
+    out_path = Path(args.out) if args.out else None
+    if out_path is not None and (out_path.is_dir() or not out_path.parent.is_dir()):
+        raise UsageError(f"--out {out_path}: expected a file in an existing directory")
+    opts = bench_options(args)
     out = Output()
-    for line in summary_lines(figures):
+    result = run_all(opts, print_fn=out.line)
+    for line in summary_lines(result):
         out.line(line)
-    if args.out:
-        Path(args.out).write_text(json.dumps(figures, indent=1, default=str))
-        out.line(f"figures: {args.out}")
-    return EXIT_OK
+    if out_path is not None:
+        out_path.write_text(to_json(result.figures))
+        out.line(f"figures: {out_path}")
+    if result.all_met:
+        out.line("exit 0: " + ("every target was met" if result.results
+                               else "no target judged"))
+        return EXIT_OK
+    if args.no_fail:
+        out.line("--no-fail: exit 0 although a target was missed")
+        return EXIT_OK
+    out.line("exit 1: a target was missed (--no-fail for exploration)")
+    return EXIT_FAIL
 
 
 def cmd_controllers(args: argparse.Namespace) -> int:
