@@ -21,16 +21,16 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from controllers.behaviour.types import ObstaclePolicy, Obstacles
+from controllers.behaviour.types import ObstaclePolicy, Obstacles, Side
 
 if TYPE_CHECKING:  # numba modules: the registry (and the catalog check in the command's
     # parent process) import this module, and need neither
     from controllers.path.frenet import FrenetPath
     from controllers.plant.vehicle_model import VehicleParams
 
-__all__ = ["Command", "ConfigError", "Controller", "ControllerBase", "Observation",
-           "ObstaclePolicy", "Obstacles", "ScenarioContext", "StepDiagnostics",
-           "SumoDriverModel"]
+__all__ = ["Command", "ConfigError", "Controller", "ControllerBase", "EgoOnPath",
+           "Observation", "ObstaclePolicy", "Obstacles", "ScenarioContext", "Side",
+           "StepDiagnostics", "SumoDriverModel"]
 
 
 class ConfigError(ValueError):
@@ -93,18 +93,47 @@ class ScenarioContext:
 
 
 @dataclass(frozen=True)
+class EgoOnPath:
+    """The ego's CG on the reference path, as the loop projected it this step (the same
+    projection, hinted by the previous step's, that the behaviour and the trace use).
+
+    s_m: arc length [m]; lat_m: lateral offset [m, left +]; heading_err_rad: yaw minus
+    the path's tangent angle there, wrapped to (-pi, pi] [rad] (SUMO's driver: its yaw
+    relative to its lane); path_heading_rad: the tangent angle gamma(s_m) [rad, CCW from
+    +X]; curvature_1pm: the path's curvature kappa(s_m) [1/m, left +].
+    """
+
+    s_m: float
+    lat_m: float
+    heading_err_rad: float
+    path_heading_rad: float
+    curvature_1pm: float
+
+    def __post_init__(self) -> None:
+        for name in ("s_m", "lat_m", "heading_err_rad", "path_heading_rad", "curvature_1pm"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise ValueError(f"EgoOnPath.{name} must be a finite number, got {v!r}")
+
+
+@dataclass(frozen=True)
 class Observation:
     """What a controller gets every control period.
 
     state: (6,) measured plant state [X_m, Y_m, psi_rad, u_mps, v_mps, r_radps].
     target_speed_mps: speed set-point (the behaviour lowers it to follow).
-    obstacles: ellipses within the detection distance, nearest first.
+    obstacles: ellipses within the detection distance, nearest first, each with its
+        vehicle's id (``obstacles.vehicle_ids``, () when not known).
     pass_side: +1 pass on the left, -1 on the right, 0 no obstacle or follow.
     lateral_reference_m: where the plan should settle across the reference path [m,
         left +]: 0 on the reference lane, the neighbour lane's centre while passing.
         It steps; controllers smooth it.
     evasive: the lateral move evades a stopped vehicle ahead that the ego could not stop
         for at a comfortable deceleration: a controller may move sideways faster.
+    side: the behaviour's :class:`Side` (FOLLOW too, which passes on no side); None:
+        the one of ``pass_side`` (LEFT, RIGHT or KEEP). It must agree with ``pass_side``.
+    ego: the ego's CG on the reference path, already projected by the loop (None when
+        the caller did not: a controller then projects ``state`` itself).
     """
 
     t_s: float
@@ -114,6 +143,17 @@ class Observation:
     pass_side: int = 0
     lateral_reference_m: float = 0.0
     evasive: bool = False
+    side: Side | None = None
+    ego: EgoOnPath | None = None
+
+    def __post_init__(self) -> None:
+        if self.pass_side not in (-1, 0, 1) or isinstance(self.pass_side, bool):
+            raise ValueError(f"Observation.pass_side must be -1, 0 or +1, got {self.pass_side!r}")
+        side = Side(self.pass_side) if self.side is None else Side(self.side)
+        if side.pass_side != self.pass_side:
+            raise ValueError(f"Observation.side {side.name} disagrees with pass_side "
+                             f"{self.pass_side!r}")
+        object.__setattr__(self, "side", side)
 
 
 @dataclass(frozen=True, slots=True)

@@ -23,6 +23,8 @@ from controllers.behaviour.types import (
     LaneContext,
     LaneSlot,
     ObstaclePolicy,
+    Reason,
+    Side,
     Traffic,
 )
 from controllers.path.frenet import FrenetPath
@@ -85,17 +87,32 @@ def test_an_empty_road_keeps_the_lane_at_the_set_speed(path: FrenetPath) -> None
 
 def test_a_stalled_car_ahead_is_passed_on_the_left(path: FrenetPath) -> None:
     d = at(behaviour(path), 100.0, 0.0, traffic([("stalled0", 200.0, 0.0, 0.0)]), THREE_LANES)
-    assert d.side == SIDE_LEFT and d.reason.startswith("pass stalled0 on the left")
+    assert d.side == SIDE_LEFT and d.reason_code is Reason.PASS
+    assert d.reason.startswith("pass stalled0 on the left")
     assert "left lane free" in d.reason
     assert d.lateral_reference_m == pytest.approx(W)
     assert d.obstacles.count == 1
     assert d.obstacles.y_m[0] == pytest.approx(-ObstaclePolicy().offset_m)  # shifted right
+    # the ellipse names its vehicle, and the side is the enum with the trace's code
+    assert d.obstacles.vehicle_ids == ("stalled0",) == d.obstacle_ids
+    assert d.side is Side.LEFT and int(d.side) == 1 and d.pass_side == 1
+
+
+def test_side_codes_and_validation() -> None:
+    # the integers the trace has always recorded
+    assert [int(s) for s in (Side.KEEP, Side.LEFT, Side.RIGHT, Side.FOLLOW)] == [0, 1, -1, 2]
+    assert Side.FOLLOW.pass_side == 0 and Side.RIGHT.pass_side == -1
+    assert Decision(side=2).side is Side.FOLLOW  # an int is taken as its Side
+    with pytest.raises(ValueError):
+        Decision(side=3)
+    with pytest.raises(ValueError):
+        Decision(reason_code="bored")
 
 
 def test_a_car_alongside_on_the_left_sends_the_pass_right(path: FrenetPath) -> None:
     nb = traffic([("stalled0", 200.0, 0.0, 0.0), ("car", 102.0, W, 25.0)])
     d = at(behaviour(path), 100.0, 0.0, nb, THREE_LANES)
-    assert d.side == SIDE_RIGHT and "on the right" in d.reason
+    assert d.side == SIDE_RIGHT and d.reason_code is Reason.PASS
     assert d.lateral_reference_m == pytest.approx(-W)
 
 
@@ -103,7 +120,7 @@ def test_no_free_side_follows_the_stalled_car(path: FrenetPath) -> None:
     nb = traffic([("stalled0", 200.0, 0.0, 0.0), ("carL", 101.0, W, 25.0),
                   ("carR", 98.0, -W, 25.0)])
     d = at(behaviour(path), 100.0, 0.0, nb, THREE_LANES)
-    assert d.side == SIDE_FOLLOW and d.reason.startswith("follow stalled0")
+    assert d.side == SIDE_FOLLOW and d.reason_code is Reason.FOLLOW
     assert "left gap too short" in d.reason and "right gap too short" in d.reason
     assert d.target_speed_mps < 25.0
     blocker = list(d.obstacle_ids).index("stalled0")
@@ -146,14 +163,14 @@ def test_an_evasive_change_carries_on_when_aborting_is_worse(path: FrenetPath) -
     # stalled car 24 m ahead would need 625 / (2 * 23) = 13.5 m/s²: carry on.
     closing = traffic([("stalled0", 145.0, 0.0, 0.0), ("fast", 95.0, W, 37.0)])
     d = at(b, 116.0, 0.8, closing, THREE_LANES, t=100.7)
-    assert d.side == SIDE_LEFT and not d.reason.startswith("abort"), d.reason
+    assert d.side == SIDE_LEFT and d.reason_code is not Reason.ABORT, d.reason
     # An ordinary change in the same gap is aborted.
     b2 = behaviour(path)
     far = traffic([("stalled0", 270.0, 0.0, 0.0)])
     assert at(b2, 100.0, 0.0, far, THREE_LANES).side == SIDE_LEFT
     d2 = at(b2, 116.0, 0.8, traffic([("stalled0", 270.0, 0.0, 0.0), ("fast", 95.0, W, 37.0)]),
             THREE_LANES, t=100.7)
-    assert d2.reason.startswith("abort left"), d2.reason
+    assert d2.reason_code is Reason.ABORT and d2.side == SIDE_NONE, d2.reason
 
 
 def test_minimal_risk_braking_known_answers() -> None:
@@ -217,7 +234,7 @@ def test_a_slower_car_in_the_passing_lane_is_followed_not_passed(path: FrenetPat
     d = at(behaviour(path), 100.0, 0.0, nb, lanes)
     assert d.side == SIDE_FOLLOW and d.lateral_reference_m == 0.0
     assert d.target_speed_mps < 25.0
-    assert d.reason.startswith("follow slow")
+    assert d.reason_code is Reason.FOLLOW
 
 
 def test_shoulder_only_when_allowed(path: FrenetPath) -> None:
@@ -248,7 +265,7 @@ def test_a_change_aborts_before_the_commit_point_and_not_after(path: FrenetPath)
     assert first.side == SIDE_LEFT
     danger = traffic([("stalled0", 200.0, 0.0, 0.0), ("fast", 95.0, W, 40.0)])
     early = at(b, 101.0, 1.0, danger, THREE_LANES, t=100.1)  # 1.0 of 3.5 m: before commit
-    assert early.reason.startswith("abort left") and early.lateral_reference_m == 0.0
+    assert early.reason_code is Reason.ABORT and early.lateral_reference_m == 0.0
     b2 = behaviour(path)
     at(b2, 100.0, 0.0, traffic([("stalled0", 200.0, 0.0, 0.0)]), THREE_LANES)
     late = at(b2, 101.0, 2.5, danger, THREE_LANES, t=100.1)  # past half the lateral move
@@ -327,12 +344,14 @@ def test_back_in_the_home_lane_once_the_passed_car_is_behind(path: FrenetPath) -
     b = behaviour(path, hold_s=0.0)
     nb = traffic([("stalled0", 200.0, 0.0, 0.0)])
     assert at(b, 100.0, 0.0, nb, THREE_LANES).side == SIDE_LEFT
-    assert at(b, 150.0, W, nb, THREE_LANES, t=102.0).reason == "in the left lane"
+    done = at(b, 150.0, W, nb, THREE_LANES, t=102.0)
+    assert done.reason_code is Reason.IN_LANE and done.side == SIDE_LEFT
     alongside = at(b, 219.0, W, nb, THREE_LANES, t=104.0)
     assert alongside.lateral_reference_m == pytest.approx(W)  # not yet 15 m beyond
     # Box centres 4.8 m apart when the bumpers meet: 15 m beyond at s = 200 + 4.8 + 15.
     back = at(b, 220.5, W, nb, THREE_LANES, t=105.0)
-    assert back.reason.startswith("return right") and back.lateral_reference_m == 0.0
+    assert back.reason_code is Reason.RETURN and back.side == SIDE_RIGHT
+    assert back.lateral_reference_m == 0.0
     # ... but not while a car is alongside in the home lane.
     b2 = behaviour(path, hold_s=0.0)
     at(b2, 100.0, 0.0, nb, THREE_LANES)
@@ -348,7 +367,8 @@ def test_a_lane_change_holds_for_hold_s(path: FrenetPath) -> None:
     at(b, 100.0, 0.0, nb, THREE_LANES, t=10.0)
     at(b, 150.0, W, nb, THREE_LANES, t=12.0)  # completes at t = 12
     early = at(b, 222.0, W, nb, THREE_LANES, t=13.0)
-    assert early.lateral_reference_m == pytest.approx(W) and "holding" in early.reason
+    assert early.lateral_reference_m == pytest.approx(W) and early.reason_code is Reason.KEEP
+    assert "holding" in early.reason
     later = at(b, 240.0, W, nb, THREE_LANES, t=15.5)
     assert later.lateral_reference_m == 0.0
 

@@ -20,6 +20,7 @@ from controllers.behaviour.types import (
     EgoFrenet,
     LaneContext,
     LaneSlot,
+    Reason,
 )
 from controllers.path.frenet import FrenetPath
 from controllers.two_loop.lateral import LateralReferenceShaper, LateralRefParams
@@ -61,7 +62,7 @@ def test_a_return_waits_on_a_curve_that_leaves_no_room() -> None:
     lanes = {i: LaneSlot(i, W, True, False) for i in range(3)}
     d = at(b, 400.0, W, traffic([]), lanes, ref=1, v=33.0, set_speed=33.0)
     assert d.lateral_reference_m == pytest.approx(W)  # stays in the left lane
-    assert "curve" in d.reason
+    assert d.reason_code is Reason.KEEP and "curve" in d.reason
     # the same on a straight road returns
     straight = behaviour(FrenetPath.from_polyline(np.array([[0.0, 0.0], [3000.0, 0.0]])))
     d2 = at(straight, 400.0, W, traffic([]), lanes, ref=1, v=33.0, set_speed=33.0)
@@ -109,7 +110,7 @@ def test_a_lane_that_ends_is_left_towards_the_through_lanes(path: FrenetPath) ->
     b = behaviour(path)
     d = at(b, 200.0, -W, traffic([]), ending_lanes(400.0), ref=1)
     assert d.side == SIDE_LEFT and d.lateral_reference_m == pytest.approx(0.0)
-    assert "lane ends" in d.reason
+    assert d.reason_code is Reason.LANE_ENDS
 
 
 def test_a_lane_end_change_never_turns_away_from_the_through_lanes(path: FrenetPath) -> None:
@@ -145,7 +146,7 @@ def test_a_free_left_lane_makes_room_for_merging_traffic(path: FrenetPath) -> No
     d = behaviour(path).decide(EgoFrenet(100.0, 0.0, 100.0, 0.0, 25.0, 100.0), merger,
                                merge_context(), 25.0)
     assert d.side == SIDE_LEFT and d.lateral_reference_m == pytest.approx(W)
-    assert "ramp0" in d.reason
+    assert d.reason_code is Reason.MAKE_ROOM and "ramp0" in d.reason
 
 
 def test_no_return_into_a_lane_traffic_is_merging_into(path: FrenetPath) -> None:

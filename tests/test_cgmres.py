@@ -209,6 +209,36 @@ def test_obstacle_slots_follow_their_obstacles_and_fade() -> None:
     assert max(e) < 0.5
 
 
+def _with_ids(obstacles: Obstacles, ids: tuple[str, ...]) -> Obstacles:
+    return Obstacles(obstacles.s_m, obstacles.y_m, obstacles.speed_s_mps,
+                     obstacles.speed_y_mps, obstacles.semi_a_m, obstacles.semi_b_m, ids)
+
+
+def test_obstacle_slots_are_keyed_by_vehicle_id() -> None:
+    path = FrenetPath.cached(STRAIGHT)
+    outer = CgmresOuter(path, CgmresParams(obstacle_fade_s=0.1), 3)
+    x = np.array([0.0, 0.0, 0.0])
+    outer.reset(x, 25.0)
+    outer.update(0.0, x, Obstacles.empty(), 25.0, 0.02)
+    outer.update(0.02, x + [0.5, 0, 0],
+                 _with_ids(_obstacles([60.0, 70.0], [-0.3, 3.5]), ("a", "b")), 25.0, 0.02)
+    assert outer.obstacle_slot_ids == ("a", "b", "")
+    # "a" changes lane: 3.8 m across, beyond the 1 m proximity match: by id it keeps
+    # its slot (the proximity match would have started a new, fading-in one)
+    outer.update(0.04, x + [1.0, 0, 0],
+                 _with_ids(_obstacles([70.0, 60.0], [3.5, 3.5]), ("b", "a")), 25.0, 0.02)
+    slots = outer.obstacle_slots
+    assert outer.obstacle_slot_ids == ("a", "b", "")
+    assert slots[:, 6].sum() == 2 and slots[0, 1] == pytest.approx(3.5)
+    # a different car where "a" was is not "a": it takes a new slot, "a" fades out
+    outer.update(0.06, x + [1.5, 0, 0], _with_ids(_obstacles([60.0], [3.5]), ("c",)), 25.0,
+                 0.02)
+    assert outer.obstacle_slot_ids == ("a", "b", "c")
+    assert outer.obstacle_slots[0, 8] < 0.0 and outer.obstacle_slots[2, 7] == 0.0
+    with pytest.raises(ValueError, match="vehicle_ids"):
+        _with_ids(_obstacles([60.0], [0.0]), ("a", "b"))
+
+
 def test_cgmres_solution_is_ipopts_local_minimum() -> None:
     """The same discretised J3 problem as an NLP (CasADi + Ipopt, single shooting on the
     straight road): started near the C/GMRES plan, Ipopt finds the same point, so F = 0

@@ -1,4 +1,4 @@
-"""docs/two_loop.md's option tables are the generated ones (controllers.params_doc)."""
+"""docs/two_loop.md's option tables are the generated ones (suite.cli.params_doc)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from controllers import registry
-from controllers.params_doc import BEGIN, DOC_PATH, END, main, options_block, render
+from suite.cli.params_doc import BEGIN, DOC_PATH, END, main, options_block, render
 
 
 def _row(block: str, option: str) -> list[str]:
@@ -17,7 +17,7 @@ def _row(block: str, option: str) -> list[str]:
 
 def test_two_loop_doc_has_the_generated_tables() -> None:
     text = DOC_PATH.read_text(encoding="utf-8")
-    assert render(text) == text, "run: python -m controllers.params_doc --write"
+    assert render(text) == text, "run: python -m suite.cli.params_doc --write"
 
 
 def test_every_option_of_both_controllers_is_a_row() -> None:

@@ -170,10 +170,17 @@ def test_the_decision_reaches_the_controller_and_the_trace() -> None:
     assert first.pass_side == SIDE_LEFT and first.lateral_reference_m == pytest.approx(W)
     assert first.obstacles.count == 1
     assert np.all(trace.decision.side == SIDE_LEFT)
-    reasons = list(trace.decision.side_reason)
-    assert reasons[0].startswith("pass stalled0 on the left: left lane free")
-    assert all(r.startswith(("pass stalled0", "passing stalled0")) for r in reasons)
+    codes = list(trace.decision.reason_code)
+    assert codes[0] == "pass" and set(codes[1:]) <= {"pass", "passing"}
+    assert trace.decision.side_reason[0].startswith("pass stalled0")  # the text beside it
     assert np.all(trace.decision.lat_ref_m == pytest.approx(W))
+    # the obstacles name their vehicle, in the observation and beside each ellipse
+    assert first.obstacles.vehicle_ids == ("stalled0",) and first.side == SIDE_LEFT
+    assert [arrays.ellipse_id(k, 0) for k in range(20)] == ["stalled0"] * 20
+    # the ego's projection is the loop's (the trace's) one, handed to the controller
+    for k, ob in enumerate(controller.observations[1:]):
+        assert ob.ego is not None
+        assert (ob.ego.s_m, ob.ego.lat_m) == (trace.ego.s_m[k], trace.ego.lat_dev_m[k])
     # The controller's own diagnostics are trace columns with the values it returned.
     assert np.all(trace.extra["seen_obstacles"] == 1.0)
     assert np.all(trace.extra["seen_pass_side"] == 1.0)

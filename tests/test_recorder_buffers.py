@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from controllers.behaviour.ellipses import ellipses_in_world
-from controllers.behaviour.types import Decision, Obstacles, Traffic
+from controllers.behaviour.types import Decision, Obstacles, Reason, Traffic
 from controllers.path.frenet import FrenetPath
 from controllers.protocol import Command, StepDiagnostics
 from suite.run.ego import EgoState
@@ -30,9 +30,10 @@ def _traffic(rng: np.random.Generator, n: int, x0: float) -> Traffic:
                    stalled=rng.random(n) < 0.1)
 
 
-def _obstacles(rng: np.random.Generator, k: int, s0: float) -> Obstacles:
+def _obstacles(rng: np.random.Generator, k: int, s0: float, step: int = 0) -> Obstacles:
+    ids = tuple(f"v{step}_{j}" for j in range(k)) if step % 2 else ()  # ids every other step
     return Obstacles(s0 + rng.uniform(5.0, 80.0, k), rng.uniform(-3.0, 3.0, k), np.zeros(k),
-                     np.zeros(k), rng.uniform(5.0, 9.0, k), rng.uniform(1.5, 2.5, k))
+                     np.zeros(k), rng.uniform(5.0, 9.0, k), rng.uniform(1.5, 2.5, k), ids)
 
 
 def test_buffers_equal_per_step_recording() -> None:
@@ -47,8 +48,9 @@ def test_buffers_equal_per_step_recording() -> None:
         state = np.array([x, 0.0, 0.0, 25.0, 0.0, 0.0])
         ego = EgoState(state, 0.0, 0.0, 0.0, 0.0, x, 0.0, 0.0)
         traffic = _traffic(rng, int(rng.integers(0, 40)), x) if step % 7 else Traffic.empty()
-        obstacles = _obstacles(rng, int(rng.integers(0, 4)), x)
-        decision = Decision(obstacles=obstacles, target_speed_mps=25.0)
+        obstacles = _obstacles(rng, int(rng.integers(0, 4)), x, step)
+        decision = Decision(obstacles=obstacles, target_speed_mps=25.0,
+                            reason_code=Reason.KEEP, reason="keep lane: free")
         rec.record(step, 0.02 * step, ego, decision,
                    Command(0.0, 0.0, diagnostics=StepDiagnostics()),
                    SafetySample(math.inf, "", False, False), StepTiming(0.0, 0.0, 0.0), traffic)
@@ -73,7 +75,13 @@ def test_buffers_equal_per_step_recording() -> None:
     for k, e in enumerate(expected_ell):
         np.testing.assert_allclose(arrays.ellipses[k, : e.shape[0]], e, rtol=1e-12, atol=1e-9)
         assert np.all(np.isnan(arrays.ellipses[k, e.shape[0]:]))
+        # each ellipse's vehicle id beside it ('' where not given, and in the padding)
+        n_k = e.shape[0]
+        want = [f"v{k}_{j}" if k % 2 else "" for j in range(n_k)] + [""] * (width - n_k)
+        assert [arrays.ellipse_id(k, j) for j in range(width)] == want
     assert arrays.detection_radius_m == 120.0
+    assert set(trace.decision.reason_code) == {"keep"}
+    assert set(trace.decision.side_reason) == {"keep lane: free"}
 
 
 def test_columns_grow_and_keep_their_rows() -> None:

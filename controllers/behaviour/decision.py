@@ -62,6 +62,7 @@ from controllers.behaviour.types import (
     EgoFrenet,
     LaneContext,
     ObstaclePolicy,
+    Reason,
     Traffic,
 )
 from controllers.path.frenet import FrenetPath
@@ -108,9 +109,9 @@ class _Plan:
 
 @dataclass(frozen=True)
 class _Want:
-    """A wanted change: target lane, where the manoeuvre ends (path s), why, whether it
-    may skip the hold time, the vehicle it passes ('' none) and whether it evades a
-    stopped vehicle that the ego cannot stop for comfortably."""
+    """A wanted change: target lane, where the manoeuvre ends (path s), why (text), whether
+    it may skip the hold time, the vehicle it passes ('' none), whether it evades a
+    stopped vehicle that the ego cannot stop for comfortably, and why (the code)."""
 
     target: int
     end_s_m: float
@@ -118,6 +119,7 @@ class _Want:
     urgent: bool
     passing: str = ""
     evasive: bool = False
+    kind: Reason = Reason.PASS
 
 
 @dataclass
@@ -144,7 +146,7 @@ class LaneBehaviour:
         scene = self._scene(ego, traffic, lanes)
         self._accel = self._tracker.update(ego.t_s, traffic)
         plan = self._plan or _Plan(scene.ego_lane, scene.ego_lane, -math.inf)
-        plan, reason, follow = self._update(scene, plan, set_speed_mps)
+        plan, code, reason, follow = self._update(scene, plan, set_speed_mps)
         self._plan = plan
         target, lead = self._speed(scene, plan, set_speed_mps)
         side = pass_side(plan, follow)
@@ -153,8 +155,7 @@ class LaneBehaviour:
                                   self.ego.length_m, self.ego.width_m, self.lane_width_m)
         return Decision(obstacles=obstacles, side=side, reason=reason, target_speed_mps=target,
                         lateral_reference_m=scene.offset_m(plan.lane),
-                        obstacle_ids=tuple(traffic.ids[i] for i in order),
-                        evasive=plan.changing and plan.evasive)
+                        evasive=plan.changing and plan.evasive, reason_code=code)
 
     def _scene(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext) -> LaneScene:
         fn = project_traffic(self.path, traffic, ego)
@@ -171,8 +172,10 @@ class LaneBehaviour:
         return scene
 
     # ------------------------------------------------------------------ lane plan
-    def _update(self, sc: LaneScene, plan: _Plan, set_speed: float) -> tuple[_Plan, str, bool]:
-        """(new plan, why, following): advance a change, or start one that is wanted."""
+    def _update(self, sc: LaneScene, plan: _Plan, set_speed: float
+                ) -> tuple[_Plan, Reason, str, bool]:
+        """(new plan, why: code and text, following): advance a change, or start one that
+        is wanted."""
         lc = self.params.lane_change
         t = sc.ego.t_s
         if plan.changing:
@@ -182,8 +185,9 @@ class LaneBehaviour:
             lead = blocked_by
             if lead is not None:
                 lid = sc.traffic.ids[lead.index]
-                return plan, f"follow {lid} (no faster lane)", True
-            return plan, "keep lane: free" if plan.lane == 0 else "keep lane", False
+                return plan, Reason.FOLLOW, f"follow {lid} (no faster lane)", True
+            return (plan, Reason.KEEP, "keep lane: free" if plan.lane == 0 else "keep lane",
+                    False)
         reasons = []
         for w in want:
             curve = self._curve_acc_mps2(sc, w.end_s_m)
@@ -205,13 +209,13 @@ class LaneBehaviour:
                 continue
             new = _Plan(w.target, plan.lane, t, w.passing, w.evasive, w.end_s_m)
             tried = f" ({'; '.join(reasons)})" if reasons else ""
-            return new, f"{w.why}: {why}{tried}", False
+            return new, w.kind, f"{w.why}: {why}{tried}", False
         if blocked_by is not None:
             lid = sc.traffic.ids[blocked_by.index]
-            return plan, f"follow {lid}: " + "; ".join(reasons), True
-        return plan, "keep lane: " + "; ".join(reasons), False
+            return plan, Reason.FOLLOW, f"follow {lid}: " + "; ".join(reasons), True
+        return plan, Reason.KEEP, "keep lane: " + "; ".join(reasons), False
 
-    def _advance_change(self, sc: LaneScene, plan: _Plan) -> tuple[_Plan, str, bool]:
+    def _advance_change(self, sc: LaneScene, plan: _Plan) -> tuple[_Plan, Reason, str, bool]:
         lc = self.params.lane_change
         t = sc.ego.t_s
         start, goal = sc.offset_m(plan.origin), sc.offset_m(plan.lane)
@@ -219,7 +223,8 @@ class LaneBehaviour:
         progress = (sc.ego.lat_m - start) / span if abs(span) > 1e-6 else 1.0
         side = "left" if plan.lane > plan.origin else "right"
         if abs(sc.ego.lat_m - goal) < lc.done_tolerance_m:
-            return _Plan(plan.lane, plan.lane, t, plan.passing), f"in the {side} lane", False
+            return (_Plan(plan.lane, plan.lane, t, plan.passing), Reason.IN_LANE,
+                    f"in the {side} lane", False)
         if progress < lc.commit_fraction:
             # The stretch the change was started on (a new one only for a plan without):
             # a different stretch for the re-check would flip a decision the start
@@ -231,10 +236,11 @@ class LaneBehaviour:
             ok, why = lane_change_safety(sc, plan.lane, end, lc, bound,
                                          self.ego.allow_shoulder)
             if not ok and not self._evasion_beats_abort(sc, plan):
-                return (_Plan(plan.origin, plan.origin, t, plan.passing),
+                return (_Plan(plan.origin, plan.origin, t, plan.passing), Reason.ABORT,
                         f"abort {side}: {why}", False)
-        what = f"passing {plan.passing}" if plan.passing else f"changing {side}"
-        return plan, what, False
+        if plan.passing:
+            return plan, Reason.PASSING, f"passing {plan.passing}", False
+        return plan, Reason.CHANGING, f"changing {side}", False
 
     def _evasion_beats_abort(self, sc: LaneScene, plan: _Plan) -> bool:
         """An evasive change whose gap closes: aborting means stopping for the stopped
@@ -290,7 +296,7 @@ class LaneBehaviour:
                 v_there, _ = self._lane_speed(sc, c + step, set_speed)
                 if v_there - v_here > lc.incentive_mps:
                     wants.append(_Want(c + step, end, f"pass {lid} on the {name}", stopped, lid,
-                                       evasive))
+                                       evasive, Reason.PASS))
         wants += self._lane_end_wants(sc, c)
         if c != 0 and not wants and self._passed(sc, plan):
             home = c - int(math.copysign(1, c))
@@ -298,7 +304,7 @@ class LaneBehaviour:
             if v_home >= v_here - 0.5 and not self._merging_into(sc, home):
                 name = "right" if home < c else "left"
                 wants.append(_Want(home, sc.ego.s_m + self._change_length_m(sc, home),
-                                   f"return {name}", False))
+                                   f"return {name}", False, kind=Reason.RETURN))
         if not wants:
             wants += self._courtesy_wants(sc, c, v_here, set_speed)
         return wants, (lead if blocked else None)
@@ -318,7 +324,7 @@ class LaneBehaviour:
         length = min(slot.continues_m, self._change_length_m(sc, c + toward))
         return [_Want(c + toward, sc.ego.s_m + length,
                       f"lane ends in {slot.continues_m:.0f} m",
-                      slot.continues_m < horizon)]
+                      slot.continues_m < horizon, kind=Reason.LANE_ENDS)]
 
     def _merging_into(self, sc: LaneScene, rel: int) -> list[int]:
         """Vehicles that will merge into lane ``rel`` near the ego: on a lane that ends
@@ -389,7 +395,8 @@ class LaneBehaviour:
         first = sc.traffic.ids[merging[0][0]]
         name = "left" if away > 0 else "right"
         return [_Want(c + away, sc.ego.s_m + self._change_length_m(sc, c + away),
-                      f"make room for {first} merging: {name}", False)]
+                      f"make room for {first} merging: {name}", False,
+                      kind=Reason.MAKE_ROOM)]
 
     def _change_length_m(self, sc: LaneScene, target: int) -> float:
         """Path length [m] of a change into relative lane ``target`` at the ego's speed:

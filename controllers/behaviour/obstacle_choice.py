@@ -26,14 +26,7 @@ import numpy.typing as npt
 
 from controllers.behaviour.ellipses import ellipse_semi_axes, offset_centre_y
 from controllers.behaviour.perception import LaneScene
-from controllers.behaviour.types import (
-    SIDE_FOLLOW,
-    SIDE_LEFT,
-    SIDE_NONE,
-    SIDE_RIGHT,
-    ObstaclePolicy,
-    Obstacles,
-)
+from controllers.behaviour.types import ObstaclePolicy, Obstacles, Side
 
 __all__ = ["LanePlan", "pass_side", "plan_ellipses", "select_obstacles"]
 
@@ -55,15 +48,15 @@ class LanePlan(Protocol):
     def changing(self) -> bool: ...
 
 
-def pass_side(plan: LanePlan, follow: bool) -> int:
-    """SIDE_LEFT / SIDE_RIGHT / SIDE_FOLLOW / SIDE_NONE of the plan (module docstring)."""
+def pass_side(plan: LanePlan, follow: bool) -> Side:
+    """The plan's :class:`Side`: LEFT / RIGHT / FOLLOW / KEEP (module docstring)."""
     if plan.changing:
-        return SIDE_LEFT if plan.lane > plan.origin else SIDE_RIGHT
+        return Side.LEFT if plan.lane > plan.origin else Side.RIGHT
     if follow:
-        return SIDE_FOLLOW
+        return Side.FOLLOW
     if plan.lane != 0:
-        return SIDE_LEFT if plan.lane > 0 else SIDE_RIGHT
-    return SIDE_NONE
+        return Side.LEFT if plan.lane > 0 else Side.RIGHT
+    return Side.KEEP
 
 
 def select_obstacles(sc: LaneScene, plan: LanePlan, lead: int,
@@ -89,14 +82,15 @@ def plan_ellipses(sc: LaneScene, order: IntpArray, plan: LanePlan, side: int,
                   follow_lead: int, pol: ObstaclePolicy, ego_length_m: float,
                   ego_width_m: float, lane_width_m: float) -> Obstacles:
     """The ellipses of the vehicles ``order`` (module docstring), in the path's Frenet
-    frame; ``follow_lead``: the index of the lead made a wall (-1 none)."""
+    frame, each with its vehicle's id; ``follow_lead``: the index of the lead made a wall
+    (-1 none)."""
     fn = sc.fn
     axes = np.array([ellipse_semi_axes(fn.length_m[i], fn.width_m[i], ego_length_m,
                                        ego_width_m, pol)
                      for i in order]).reshape(-1, 2)
     semi_a, semi_b = axes[:, 0].copy(), axes[:, 1].copy()
     y = fn.y_m[order].copy()
-    if side in (SIDE_LEFT, SIDE_RIGHT):
+    if side in (Side.LEFT, Side.RIGHT):
         # Shift the vehicles of the lane being left away from the pass side.
         origin = plan.origin if plan.changing else 0
         for k, i in enumerate(order):
@@ -113,7 +107,7 @@ def plan_ellipses(sc: LaneScene, order: IntpArray, plan: LanePlan, side: int,
             float(semi_b[k]), 0.5 * float(fn.length_m[i] + ego_length_m))
     return Obstacles(s_m=fn.s_m[order].copy(), y_m=y, speed_s_mps=fn.v_s_mps[order].copy(),
                      speed_y_mps=fn.v_y_mps[order].copy(), semi_a_m=semi_a,
-                     semi_b_m=semi_b)
+                     semi_b_m=semi_b, vehicle_ids=tuple(sc.traffic.ids[i] for i in order))
 
 
 @numba.njit(cache=True)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from enum import IntEnum, StrEnum
 
 import numpy as np
 import numpy.typing as npt
@@ -28,10 +29,54 @@ Int8Array = npt.NDArray[np.int8]
 def _no_agents() -> Int8Array:
     return np.zeros(0, dtype=np.int8)
 
-SIDE_NONE = 0
-SIDE_LEFT = 1
-SIDE_RIGHT = -1
-SIDE_FOLLOW = 2
+class Side(IntEnum):
+    """The behaviour's side for the plan; the integer is the trace's ``side`` code.
+
+    LEFT / RIGHT: pass (or move) on that side; KEEP: keep the lane, nothing to pass;
+    FOLLOW: no side is free, follow the lead (the controller passes on no side).
+    """
+
+    KEEP = 0
+    LEFT = 1
+    RIGHT = -1
+    FOLLOW = 2
+
+    @property
+    def pass_side(self) -> int:
+        """+1 / -1 when passing on that side, else 0 (the controller's pass side)."""
+        return int(self) if self in (Side.LEFT, Side.RIGHT) else 0
+
+
+SIDE_NONE = Side.KEEP
+SIDE_LEFT = Side.LEFT
+SIDE_RIGHT = Side.RIGHT
+SIDE_FOLLOW = Side.FOLLOW
+
+
+class Reason(StrEnum):
+    """What kind of decision the behaviour took (the trace's ``reason_code``); the
+    decision's ``reason`` text says it with the vehicles and numbers.
+
+    NONE: no lane behaviour (a controller that takes no obstacles); KEEP: keep the lane
+    (free, or no change possible that is not needed); FOLLOW: a slower lead holds the
+    ego and no faster lane can be taken; PASS / RETURN / LANE_ENDS / MAKE_ROOM: a lane
+    change starts, to pass a vehicle, back towards the home lane, out of a lane that
+    ends, to make room for a merging vehicle; PASSING / CHANGING: a change under way
+    (passing a vehicle, or not); IN_LANE: a change complete; ABORT: a change aborted
+    (back to the origin lane).
+    """
+
+    NONE = "none"
+    KEEP = "keep"
+    FOLLOW = "follow"
+    PASS = "pass"
+    RETURN = "return"
+    LANE_ENDS = "lane_ends"
+    MAKE_ROOM = "make_room"
+    PASSING = "passing"
+    CHANGING = "changing"
+    IN_LANE = "in_lane"
+    ABORT = "abort"
 
 
 def require_numbers(obj: object, names: tuple[str, ...], *, low: float = 0.0,
@@ -185,7 +230,8 @@ class Obstacles:
     applied, away from the pass side), velocity ``(speed_s_mps, speed_y_mps)`` for the
     constant-velocity prediction s_j(tau) = s_m + speed_s_mps tau, semi-axes
     ``semi_a_m`` (along the path) and ``semi_b_m`` (across), ego allowance and
-    margins included.
+    margins included. ``vehicle_ids``: the vehicle behind each ellipse (K entries), or
+    () when not known (the planner then re-identifies obstacles by position).
     """
 
     s_m: FloatArray
@@ -194,6 +240,12 @@ class Obstacles:
     speed_y_mps: FloatArray
     semi_a_m: FloatArray
     semi_b_m: FloatArray
+    vehicle_ids: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.vehicle_ids and len(self.vehicle_ids) != self.count:
+            raise ValueError(f"Obstacles.vehicle_ids must have {self.count} entries (or "
+                             f"none), got {len(self.vehicle_ids)}")
 
     @staticmethod
     def empty() -> Obstacles:
@@ -252,9 +304,10 @@ class ObstaclePolicy:
 class Decision:
     """The behaviour layer's output for one step.
 
-    obstacles: the controller's ellipses; obstacle_ids: the vehicle behind each;
-    side: SIDE_LEFT / SIDE_RIGHT (pass), SIDE_FOLLOW (no side free: follow), SIDE_NONE;
-    reason: why (text for logs); target_speed_mps: the speed set-point (lowered while
+    obstacles: the controller's ellipses (with the vehicle behind each: ``obstacle_ids``);
+    side: :class:`Side` (LEFT / RIGHT pass, FOLLOW no side free, KEEP);
+    reason_code: the kind of decision (:class:`Reason`), reason: why, as text (for logs
+    and the trace); target_speed_mps: the speed set-point (lowered while
     following); lateral_reference_m: where the plan should settle across the reference
     path [m, left +] (the neighbour lane's centre while passing, 0 otherwise);
     evasive: the lane change under way evades a stopped vehicle the ego could not stop
@@ -262,14 +315,24 @@ class Decision:
     """
 
     obstacles: Obstacles = field(default_factory=Obstacles.empty)
-    side: int = SIDE_NONE
+    side: Side = Side.KEEP
     reason: str = ""
     target_speed_mps: float = math.nan
     lateral_reference_m: float = 0.0
-    obstacle_ids: tuple[str, ...] = ()
     evasive: bool = False
+    reason_code: Reason = Reason.NONE
+
+    def __post_init__(self) -> None:
+        # Side(...) / Reason(...) raise ValueError for a value that is none of theirs
+        object.__setattr__(self, "side", Side(self.side))
+        object.__setattr__(self, "reason_code", Reason(self.reason_code))
+
+    @property
+    def obstacle_ids(self) -> tuple[str, ...]:
+        """The vehicle behind each ellipse (() when the obstacles carry no ids)."""
+        return self.obstacles.vehicle_ids
 
     @property
     def pass_side(self) -> int:
         """+1 / -1 when passing on that side, else 0 (the controller's view)."""
-        return self.side if self.side in (SIDE_LEFT, SIDE_RIGHT) else 0
+        return self.side.pass_side

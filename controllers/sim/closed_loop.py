@@ -44,6 +44,7 @@ from controllers.behaviour.types import (
     EgoFrenet,
     LaneContext,
     ObstaclePolicy,
+    Side,
     Traffic,
 )
 from controllers.path.frenet import FrenetPath
@@ -142,7 +143,7 @@ class ScriptedBehaviour:
             blocking = (np.abs(obstacles.y_m) < 0.5 * self.lane_width_m) & (obstacles.s_m > ego.s_m)
             obstacles.semi_b_m[blocking] += 1.5 * self.lane_width_m
         pass_side = 0 if follow or not obstacles.count else side
-        return Decision(obstacles=obstacles, side=SIDE_FOLLOW if follow else pass_side,
+        return Decision(obstacles=obstacles, side=SIDE_FOLLOW if follow else Side(pass_side),
                         target_speed_mps=set_speed_mps, lateral_reference_m=float(y_ref))
 
 
@@ -249,7 +250,8 @@ def simulate(controller: Controller, path_xy: np.ndarray,
         cmd = controller.step(Observation(
             t_s=t, state=st.copy(), target_speed_mps=decision.target_speed_mps,
             obstacles=decision.obstacles, pass_side=decision.pass_side,
-            lateral_reference_m=decision.lateral_reference_m, evasive=decision.evasive))
+            lateral_reference_m=decision.lateral_reference_m, evasive=decision.evasive,
+            side=decision.side))
         if not (math.isfinite(cmd.steer_rad) and math.isfinite(cmd.torque_nm)):
             raise ValueError(f"non-finite command at t={t}")
         ego_c = vp.cg_to_box_centre_m

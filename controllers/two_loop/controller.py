@@ -2,8 +2,9 @@
 
 Per control period (:meth:`TwoLoopController.step`):
 
-1. measured state (6,) -> Frenet x0 = (s, y, theta_a) (projection hinted by the
-   previous s; theta_a = psi + atan2(v, u) unwrapped next to gamma(s));
+1. measured state (6,) -> Frenet x0 = (s, y, theta_a): (s, y) and gamma(s) the loop's
+   projection (``Observation.ego``; without it, its own, hinted by the previous s);
+   theta_a = psi + atan2(v, u) unwrapped next to gamma(s);
 2. lateral-reference shaper (:mod:`controllers.two_loop.lateral`): the behaviour's
    stepped ``lateral_reference_m`` -> smooth yr and the scheduled weight Cy;
 3. launch supervisor (:mod:`controllers.two_loop.launch`): below walking speed it may
@@ -43,7 +44,14 @@ from controllers.behaviour.types import ObstaclePolicy
 from controllers.params import to_dict
 from controllers.path.frenet import FrenetPath, _points_many, path_gamma, path_project_local
 from controllers.plant.limited import resistance_n
-from controllers.protocol import Command, Observation, Obstacles, ScenarioContext, StepDiagnostics
+from controllers.protocol import (
+    Command,
+    EgoOnPath,
+    Observation,
+    Obstacles,
+    ScenarioContext,
+    StepDiagnostics,
+)
 from controllers.two_loop.diagnostics import TwoLoopDiagnostics
 from controllers.two_loop.fallback import (
     NO_EMERGENCY,
@@ -156,7 +164,7 @@ class TwoLoopController:
         st = np.asarray(context.initial_state, dtype=np.float64)
         s, _ = self.path.project(st[0], st[1])
         self._s_hint = float(s)
-        x0 = self._frenet_state(st)
+        x0 = self._frenet_state(st, self._on_path(st, None))
         v0 = float(math.hypot(st[3], st[4]))
         # The OCP's target ramp starts at the car's speed, whatever the set-point: its
         # closed-form start puts every stage's V at the ramp's speed, and the conversion
@@ -180,10 +188,14 @@ class TwoLoopController:
         meta, coef, knots = self.path.tables()
         _points_many(meta, coef, knots, np.zeros(1), np.zeros(1), np.zeros((1, 2)))
 
-    def _frenet_state(self, st: np.ndarray) -> np.ndarray:
-        """Measured state -> Frenet x0 = (s, y, theta_a) with theta_a next to gamma(s)."""
+    def _on_path(self, st: np.ndarray, given: EgoOnPath | None) -> EgoOnPath:
+        """The CG on the reference path: the loop's projection when ``given``, else this
+        controller's own (hinted by the previous s; the loop's is the same, bit for bit)."""
         if self.path is None:
             raise RuntimeError("TwoLoopController used before reset")
+        if given is not None:
+            self._s_hint = given.s_m
+            return given
         meta, coef, knots = self.path.tables()
         s, d, ok = path_project_local(meta, coef, knots, float(st[0]), float(st[1]),
                                       self._s_hint)
@@ -191,19 +203,19 @@ class TwoLoopController:
             s_arr, d_arr = self.path.project(st[0], st[1])
             s, d = float(s_arr), float(d_arr)
         self._s_hint = s
+        g, k, _ = path_gamma(meta, coef, s)
+        e = (float(st[2]) - g + math.pi) % (2.0 * math.pi) - math.pi
+        return EgoOnPath(s, d, e, g, k)
+
+    @staticmethod
+    def _frenet_state(st: np.ndarray, on_path: EgoOnPath) -> np.ndarray:
+        """Measured state -> Frenet x0 = (s, y, theta_a) with theta_a next to gamma(s)."""
         u, v = float(st[3]), float(st[4])
         speed = math.hypot(u, v)
         tha = float(st[2]) + (math.atan2(v, u) if speed > 0.5 else 0.0)
-        g, _, _ = path_gamma(meta, coef, s)
+        g = on_path.path_heading_rad
         e = (tha - g + math.pi) % (2.0 * math.pi) - math.pi
-        return np.array([s, d, g + e])
-
-    def _curvature_1pm(self, s_m: float) -> float:
-        """The reference path's curvature at arc length ``s_m`` [1/m] (scalar kernel)."""
-        if self.path is None:
-            return 0.0
-        meta, coef, _ = self.path.tables()
-        return path_gamma(meta, coef, s_m)[1]
+        return np.array([on_path.s_m, on_path.lat_m, g + e])
 
     def step(self, observation: Observation) -> Command:
         if self.path is None or self.planner is None:
@@ -211,7 +223,8 @@ class TwoLoopController:
         t_outer0 = time.perf_counter()
         t_s = float(observation.t_s)
         st = np.asarray(observation.state, dtype=np.float64)
-        x0 = self._frenet_state(st)
+        on_path = self._on_path(st, observation.ego)
+        x0 = self._frenet_state(st, on_path)
         first = self._t_prev is None
         dt = self._dt if self._t_prev is None else max(observation.t_s - self._t_prev, 1e-6)
         if first:
@@ -221,7 +234,7 @@ class TwoLoopController:
                                     None if first else dt, float(x0[1]), speed,
                                     self.planner.horizon_growth(t_s - self._t_first),
                                     evasive=bool(observation.evasive),
-                                    curvature_1pm=self._curvature_1pm(float(x0[0])))
+                                    curvature_1pm=on_path.curvature_1pm)
         c_y = self.lateral.weight(self.params.outer.c_y)
         target = float(observation.target_speed_mps)
         if self.mrm.due(t_s):  # back to the planner, restarted at the measured state

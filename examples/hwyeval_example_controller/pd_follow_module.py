@@ -84,8 +84,12 @@ class BarePdFollow:
         veh, dt, path = ctx.vehicle, ctx.control_period_s, ctx.reference_path()
         x, y, psi, u, v = (float(observation.state[i]) for i in range(5))
         speed = math.hypot(u, v)
-        s_a, d_a, e_a = path.project_pose(x, y, psi, s_hint=self._s)
-        s, d, e_psi = float(s_a), float(d_a), float(e_a)
+        if observation.ego is not None:  # the loop's projection of the CG
+            s, d, e_psi = (observation.ego.s_m, observation.ego.lat_m,
+                           observation.ego.heading_err_rad)
+        else:
+            s_a, d_a, e_a = path.project_pose(x, y, psi, s_hint=self._s)
+            s, d, e_psi = float(s_a), float(d_a), float(e_a)
         self._s = s
         self._target += (observation.lateral_reference_m - self._target) * dt / (1.2 + dt)
         e_y = d - self._target

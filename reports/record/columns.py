@@ -159,8 +159,11 @@ class DecisionColumns(ColumnGroup):
     """What the behaviour layer decided before the controller ran."""
 
     target_speed_mps: FloatColumn = col("m/s", "speed set-point given to the controller")
-    side: IntColumn = col("-", "pass side: +1 left, -1 right, 0 none, 2 follow")
+    side: IntColumn = col("-", "pass side: +1 left, -1 right, 0 keep, 2 follow "
+                          "(controllers.behaviour.types.Side)")
     side_reason: TextColumn = col("-", "why that side")
+    reason_code: TextColumn = col("-", "the kind of that reason: "
+                                  "controllers.behaviour.types.Reason ('' in older records)")
     n_obstacles: IntColumn = col("-", "obstacle ellipses given to the controller")
     lat_ref_m: FloatColumn = col("m", "lateral reference given to the controller, left +")
 

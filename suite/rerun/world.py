@@ -232,8 +232,22 @@ def per_step_array(log: RunLog, values: np.ndarray) -> np.ndarray | None:
     return a[: log.n]
 
 
+def _ellipse_labels(log: RunLog, active: np.ndarray) -> list[str] | None:
+    """The vehicle id of each active ellipse, in ``ell[active]`` order (None when the
+    record has none: an older run, or a controller whose ellipses carry no ids)."""
+    ids = log.record.arrays.ellipse_ids
+    if ids is None or ids.ndim != 2 or not np.any(ids != ""):
+        return None
+    t, k = active.shape
+    padded = np.full((t, k), "", dtype=ids.dtype)
+    rows, cols = min(t, ids.shape[0]), min(k, ids.shape[1])
+    padded[:rows, :cols] = ids[:rows, :cols]
+    return [str(v) for v in padded[active]]
+
+
 def log_ellipses(log: RunLog) -> None:
-    """Active obstacle ellipses per step, coloured by the pass side of that step."""
+    """Active obstacle ellipses per step, coloured by the pass side of that step and
+    labelled with the vehicle behind each (when the record has the ids)."""
     ell = per_step_array(log, log.record.arrays.ellipses)
     if ell is None or ell.ndim != 3 or ell.shape[2] < 5:
         return
@@ -250,7 +264,8 @@ def log_ellipses(log: RunLog) -> None:
     path = ENTITY_PATHS["ellipses"]
     log.static(path, rr.LineStrips2D.from_fields(
         radii=rr.components.Radius.ui_points(1.25), draw_order=15.0))
-    log.strips_per_step(path, strips, counts, colors=colors)
+    log.strips_per_step(path, strips, counts, labels=_ellipse_labels(log, active),
+                        colors=colors)
 
 
 def _polyline_per_step(log: RunLog, values: np.ndarray

@@ -47,7 +47,8 @@ class PlantDynamics:
         scene = self.world.start(self._pose())
         state = self.plant.state.copy()
         s, y, e = self.projector.project(state)
-        return EgoState(state, 0.0, 0.0, math.nan, math.nan, s, y, e, scene.ego), scene
+        return EgoState(state, 0.0, 0.0, math.nan, math.nan, s, y, e, scene.ego,
+                        self.projector.at(s, y, e)), scene
 
     def advance(self, command: Command) -> tuple[EgoState | None, Scene]:
         steer, torque = self.plant.saturate(command.steer_rad, command.torque_nm)
@@ -55,7 +56,7 @@ class PlantDynamics:
         scene = self.world.step(self._pose())
         s, y, e = self.projector.project(state)
         return EgoState(state, self.plant.long_acc_mps2, self.plant.lat_acc_mps2, steer, torque,
-                        s, y, e, scene.ego), scene
+                        s, y, e, scene.ego, self.projector.at(s, y, e)), scene
 
 
 class SumoDrivenDynamics:
@@ -106,7 +107,8 @@ class SumoDrivenDynamics:
             raise RuntimeError("SUMO lost the ego at its insertion")
         state, s, y, e = self._smooth_state(scene.ego)
         self._psi = float(state[2])
-        return EgoState(state, 0.0, 0.0, math.nan, math.nan, s, y, e, scene.ego), scene
+        return EgoState(state, 0.0, 0.0, math.nan, math.nan, s, y, e, scene.ego,
+                        self.projector.at(s, y, e)), scene
 
     def advance(self, command: Command) -> tuple[EgoState | None, Scene]:
         del command  # SUMO drives
@@ -119,4 +121,4 @@ class SumoDrivenDynamics:
         state[5] = r
         self._psi = float(state[2])
         return EgoState(state, es.accel_mps2, es.speed_mps * r, math.nan, math.nan, s, y, e,
-                        es), scene
+                        es, self.projector.at(s, y, e)), scene

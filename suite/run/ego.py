@@ -9,7 +9,8 @@ import numpy as np
 import numpy.typing as npt
 
 from controllers.behaviour.types import EgoFrenet
-from controllers.path.frenet import FrenetPath
+from controllers.path.frenet import FrenetPath, path_gamma
+from controllers.protocol import EgoOnPath
 from suite.world.protocol import WorldEgo
 
 FloatArray = npt.NDArray[np.float64]
@@ -20,7 +21,9 @@ class EgoState:
     """state: (6,) [X_m, Y_m, psi_rad, u_mps, v_mps, r_radps] of the CG; body
     accelerations over the last step [m/s²]; applied steer [rad] / torque [N m] (NaN
     when SUMO drives); the CG on the reference path: s_m, lat_m [m], heading error
-    [rad]; the ego as the world has it (None if unknown)."""
+    [rad]; the ego as the world has it (None if unknown); ``on_path``: that projection
+    with the path's tangent angle and curvature there, as the controller gets it (None:
+    not computed, the controller projects itself)."""
 
     state: FloatArray
     long_acc_mps2: float
@@ -31,6 +34,7 @@ class EgoState:
     lat_m: float
     heading_err_rad: float
     world: WorldEgo | None = None
+    on_path: EgoOnPath | None = None
 
     @property
     def speed_mps(self) -> float:
@@ -54,3 +58,11 @@ class EgoProjector:
         s, y, e = self.path.project_pose(state[0], state[1], state[2], s_hint=self._s_hint)
         self._s_hint = float(s)
         return float(s), float(y), float(e)
+
+    def at(self, s_m: float, lat_m: float, heading_err_rad: float) -> EgoOnPath:
+        """The projection (s_m, lat_m, heading_err_rad) with the path's tangent angle and
+        curvature at ``s_m`` (the compiled scalar kernel: the values the controller's
+        own projection computes, bit for bit)."""
+        meta, coef, _ = self.path.tables()
+        gamma, kappa, _ = path_gamma(meta, coef, s_m)
+        return EgoOnPath(s_m, lat_m, heading_err_rad, float(gamma), float(kappa))

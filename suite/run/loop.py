@@ -44,11 +44,12 @@ class Stages:
 
 
 def observe(t_s: float, ego: EgoState, decision: Decision) -> Observation:
-    """The controller's view of this step."""
+    """The controller's view of this step: the decision, and the ego's state with its
+    projection on the reference path (the one the behaviour and the trace use)."""
     return Observation(t_s=t_s, state=ego.state.copy(), target_speed_mps=decision.target_speed_mps,
                        obstacles=decision.obstacles, pass_side=decision.pass_side,
                        lateral_reference_m=decision.lateral_reference_m,
-                       evasive=decision.evasive)
+                       evasive=decision.evasive, side=decision.side, ego=ego.on_path)
 
 
 def run_loop(stages: Stages, n_steps: int) -> str:

@@ -170,6 +170,7 @@ class TraceRecorder:
         self._nb_ids: list[str] = []
         self._picked = np.empty(64, dtype=np.int64)  # traffic indices of one step's rows
         self._ell = _Columns(dict(_ELLIPSE), max(4 * n_steps, 16))
+        self._ell_ids: list[str] = []  # the vehicle behind each ellipse row ('' unknown)
         self._plans: list[np.ndarray | None] = []
         self._previews: list[np.ndarray | None] = []
 
@@ -184,6 +185,7 @@ class TraceRecorder:
         d.target_speed_mps[i] = decision.target_speed_mps
         d.side[i] = decision.side
         d.side_reason[i] = decision.reason
+        d.reason_code[i] = decision.reason_code.value
         d.n_obstacles[i] = decision.obstacles.count
         d.lat_ref_m[i] = decision.lateral_reference_m
         sa = tr.safety
@@ -275,22 +277,27 @@ class TraceRecorder:
         cols["y_m"][a:b] = ob.y_m
         cols["semi_a_m"][a:b] = ob.semi_a_m
         cols["semi_b_m"][a:b] = ob.semi_b_m
+        self._ell_ids.extend(ob.vehicle_ids if ob.vehicle_ids else [""] * n)
 
-    def _ellipses(self) -> np.ndarray:
+    def _ellipses(self) -> tuple[np.ndarray, np.ndarray]:
         """(T, max obstacles, 6) [cx_m, cy_m, heading_rad, semi_a_m, semi_b_m, active],
         NaN-padded: each step's ellipses in the world frame, axes along the path tangent
         at their centre (``controllers.behaviour.ellipses.ellipses_in_world`` for every
-        step, in one vectorised pass)."""
+        step, in one vectorised pass); and (T, max obstacles) the vehicle id of each
+        ('' padding or unknown)."""
         e = self._ell
         counts = np.bincount(e.data["step"][: e.size], minlength=self.rows)[: self.rows]
         width = int(counts.max()) if counts.size else 0
         out = np.full((self.rows, width, 6), np.nan)
         if e.size == 0:
-            return out
+            return out, np.full((self.rows, width), "", dtype=str)
         rows = e.head("step")
         s, y = e.head("s_m"), e.head("y_m")
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
         slot = np.arange(e.size) - starts[rows]
+        names = np.asarray(self._ell_ids[: e.size], dtype=str)
+        ids = np.full((self.rows, width), "", dtype=names.dtype if names.size else str)
+        ids[rows, slot] = names
         x_w, y_w = self.path.to_global(s, y)
         out[rows, slot, 0] = x_w
         out[rows, slot, 1] = y_w
@@ -298,7 +305,7 @@ class TraceRecorder:
         out[rows, slot, 3] = e.head("semi_a_m")
         out[rows, slot, 4] = e.head("semi_b_m")
         out[rows, slot, 5] = 1.0
-        return out
+        return out, ids
 
     def finish(self, detection_radius_m: float) -> tuple[Trace, NeighbourColumns,
                                                          ControllerArrays]:
@@ -309,9 +316,10 @@ class TraceRecorder:
                                   **{name: self._nb.head(name) for name in _NEIGHBOUR_NUMERIC})
         else:
             nb = NeighbourColumns.allocate(0)
+        ellipses, ellipse_ids = self._ellipses()
         arrays = ControllerArrays(plan_xy_m=_stack(self._plans, 2),
                                   preview_xy_m=_stack(self._previews, 2),
-                                  ellipses=self._ellipses(),
+                                  ellipses=ellipses, ellipse_ids=ellipse_ids,
                                   detection_radius_m=detection_radius_m)
         return trace, nb, arrays
 

@@ -24,10 +24,11 @@ so E(t_init) is at round-off level. The horizon's growth enters the continuation
 through the F_t forward difference, like the obstacles' motion.
 
 Obstacle slots (:class:`controllers.two_loop.outer.slots.ObstacleSlots`): the K slots
-keep their obstacle between updates (matched by the constant-velocity prediction of the
-previous centre), so the unknowns Z_j, mu_j stay continuous. A new obstacle takes a free
-slot; its barrier weight fades in from 0 to Cz over ``obstacle_fade_s`` (Z = sqrt(c) on
-the current plan and mu = 0 make its rows vanish at that moment, so F stays continuous),
+keep their obstacle between updates (matched by its vehicle id; an obstacle without one
+by the constant-velocity prediction of the previous centre), so the unknowns Z_j, mu_j
+stay continuous. A new obstacle takes a free slot; its barrier weight fades in from 0
+to Cz over ``obstacle_fade_s`` (Z = sqrt(c) on the current plan and mu = 0 make its
+rows vanish at that moment, so F stays continuous),
 and an obstacle that left fades out the same way (kept at its constant-velocity
 prediction) before its slot becomes inert (trivial rows). Switching obstacles in and out
 at full weight makes E jump on every change, because the multipliers' mu dc/dx terms
@@ -372,3 +373,8 @@ class CgmresOuter:
     def obstacle_slots(self) -> np.ndarray:
         """The obstacle table (K, OBS_COLS) (a view)."""
         return self._slots.table
+
+    @property
+    def obstacle_slot_ids(self) -> tuple[str, ...]:
+        """The vehicle each slot holds (K,) ('' none, or an obstacle without an id)."""
+        return tuple(self._slots.vehicle_ids)

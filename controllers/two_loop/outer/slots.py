@@ -8,9 +8,11 @@ table's time stamp ``t_s``, A, B [m], active (0/1), barrier weight w in [0, 1], 
 Each update (:meth:`ObstacleSlots.update`):
 
 1. every active slot moves to now at constant velocity, its weight ramps by dw/dt;
-2. each of the first min(count, K) obstacles is matched to the nearest active slot
-   within max(3 m, A/2) along and 1 m across (the constant-velocity prediction of the
-   slot's previous centre);
+2. each of the first min(count, K) obstacles is matched to the active slot of its
+   vehicle (``Obstacles.vehicle_ids``: a slot keeps the id of the vehicle it holds);
+   an obstacle without an id, to the nearest active slot without one within
+   max(3 m, A/2) along and 1 m across (the constant-velocity prediction of the slot's
+   previous centre);
 3. a slot whose obstacle is gone fades out (dw/dt = -1 / obstacle_fade_s) and becomes
    inert (trivial rows Z = 1, mu = 0) once w = 0 and |mu_ij| <= 1e-3 Cz at every stage;
 4. a new obstacle takes an inert slot, else the weakest fading one; it fades in from
@@ -37,7 +39,8 @@ class ObstacleSlots:
 
     params: the solver's settings (n_stages, c_z, obstacle_fade_s); n_slots: K;
     w: the stage fractions (N+1,) of the horizon. ``table`` (K, OBS_COLS) is what the
-    kernels read; ``t_s`` its time stamp [s]. The unknowns U (N (2 + 2K),) are the
+    kernels read; ``t_s`` its time stamp [s]; ``vehicle_ids`` (K,) the vehicle each slot
+    holds ('' none, or an obstacle without an id). The unknowns U (N (2 + 2K),) are the
     planner's: the methods that touch Z, mu take them as an argument (in place).
     """
 
@@ -49,10 +52,12 @@ class ObstacleSlots:
         self.w = w
         self.table = obstacle_table(n_slots)
         self.t_s = 0.0
+        self.vehicle_ids: list[str] = [""] * n_slots
 
     def clear(self) -> None:
         """Every slot inert (a new table; the time stamp is kept)."""
         self.table = obstacle_table(self.n_slots)
+        self.vehicle_ids = [""] * self.n_slots
 
     def update(self, t_s: float, obstacles: Obstacles, u: np.ndarray, xs: np.ndarray,
                horizon_s: float, prm: np.ndarray, initialised: bool) -> None:
@@ -98,17 +103,26 @@ class ObstacleSlots:
 
     def _assign_known(self, obstacles: Obstacles) -> tuple[np.ndarray, np.ndarray]:
         """(used (K,) bool, assign (n,) slot or -1): each of the first n = min(count, K)
-        obstacles matched to the nearest active slot within 3 m / half its A along
-        and 1 m across."""
+        obstacles matched to the active slot of its vehicle id, or (an obstacle without
+        an id) to the nearest active slot without one within 3 m / half its A along and
+        1 m across."""
         tab = self.table
         k = self.n_slots
         n_in = min(obstacles.count, k)
         used = np.zeros(k, dtype=bool)
         assign = -np.ones(n_in, dtype=np.int64)
+        ids = obstacles.vehicle_ids
         for q in range(n_in):
+            vid = ids[q] if ids else ""
+            if vid:
+                j = self._slot_of(vid)
+                if j >= 0 and not used[j]:
+                    used[j] = True
+                    assign[q] = j
+                continue
             best, best_d = -1, math.inf
             for j in range(k):
-                if used[j] or tab[j, 6] < 0.5:
+                if used[j] or tab[j, 6] < 0.5 or self.vehicle_ids[j]:
                     continue
                 ds = abs(float(obstacles.s_m[q]) - tab[j, 0])
                 dy = abs(float(obstacles.y_m[q]) - tab[j, 1])
@@ -118,6 +132,13 @@ class ObstacleSlots:
                 used[best] = True
                 assign[q] = best
         return used, assign
+
+    def _slot_of(self, vehicle_id: str) -> int:
+        """The active slot holding ``vehicle_id`` (-1 none)."""
+        for j in range(self.n_slots):
+            if self.vehicle_ids[j] == vehicle_id and self.table[j, 6] > 0.5:
+                return j
+        return -1
 
     def _multipliers_gone(self, u: np.ndarray, j: int) -> bool:
         """Slot j's multipliers mu_ij have decayed (|mu| <= 1e-3 Cz at every stage): only
@@ -131,6 +152,7 @@ class ObstacleSlots:
 
     def _free(self, u: np.ndarray, j: int) -> None:
         self.table[j] = obstacle_table(1)[0]
+        self.vehicle_ids[j] = ""
         deactivate_slot(u, self.params.n_stages, self.n_slots, j)
 
     def _take(self, u: np.ndarray, used: np.ndarray) -> int:
@@ -150,8 +172,9 @@ class ObstacleSlots:
     def _fill(self, j: int, obstacles: Obstacles, q: int, new: bool, fade_rate: float,
               initialised: bool) -> None:
         """Write obstacle q into slot j; a new one fades in (at full weight at the very
-        first update)."""
+        first update); the slot takes the obstacle's vehicle id ('' none)."""
         tab = self.table
+        self.vehicle_ids[j] = obstacles.vehicle_ids[q] if obstacles.vehicle_ids else ""
         tab[j, 0] = float(obstacles.s_m[q])
         tab[j, 1] = float(obstacles.y_m[q])
         tab[j, 2] = float(obstacles.speed_s_mps[q])

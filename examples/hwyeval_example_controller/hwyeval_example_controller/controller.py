@@ -139,8 +139,12 @@ class PdFollowController:
         p, veh, dt = self.params, self._ctx.vehicle, self._ctx.control_period_s
         x, y, psi, u, v = (float(observation.state[i]) for i in range(5))
         speed = math.hypot(u, v)
-        s_arr, d_arr, e_psi_arr = self._path.project_pose(x, y, psi, s_hint=self._s_hint)
-        s, d, e_psi = float(s_arr), float(d_arr), float(e_psi_arr)
+        if observation.ego is not None:  # the loop's projection of the CG
+            s, d, e_psi = (observation.ego.s_m, observation.ego.lat_m,
+                           observation.ego.heading_err_rad)
+        else:
+            s_arr, d_arr, e_psi_arr = self._path.project_pose(x, y, psi, s_hint=self._s_hint)
+            s, d, e_psi = float(s_arr), float(d_arr), float(e_psi_arr)
         self._s_hint = s
         # lateral: filtered target, PD on the error as a curvature command
         self._lat_target_m += (observation.lateral_reference_m - self._lat_target_m) * (
