@@ -8,6 +8,7 @@ import re
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -154,3 +155,19 @@ def results(out: Path) -> pd.DataFrame:
 
 def without_timing(frame: pd.DataFrame) -> pd.DataFrame:
     return frame.drop(columns=[c for c in frame.columns if TIMING.search(c)])
+
+
+def wait_for(predicate: object, timeout_s: float, what: str) -> None:
+    """Poll ``predicate()`` every 20 ms until it is true; AssertionError after
+    ``timeout_s`` [s] naming ``what``."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():  # type: ignore[operator]
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def staging(out: Path) -> list[Path]:
+    """The staging directories of the runs in flight in ``out``."""
+    return [p for p in out.iterdir() if p.name.startswith(".partial-")] if out.is_dir() else []

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import signal
-import time
 import uuid
 from pathlib import Path
 
@@ -17,23 +16,12 @@ from reliability_support import (
     marked_pids,
     results,
     scenario_toml,
+    staging,
+    wait_for,
     write_catalog,
 )
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
-
-
-def _wait_for(predicate: object, timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():  # type: ignore[operator]
-            return
-        time.sleep(0.02)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
-def _staging(out: Path) -> list[Path]:
-    return [p for p in out.iterdir() if p.name.startswith(".partial-")] if out.is_dir() else []
 
 
 def _forkservers(marker: str, parent: int) -> list[int]:
@@ -60,7 +48,7 @@ def test_a_forkserver_killed_mid_run_loses_no_result(tmp_path: Path) -> None:
     run = Background("run", str(catalog), "--out", str(out), "--no-log", "--jobs", "1",
                      env=marked_env(marker))
     try:
-        _wait_for(lambda: len(_staging(out)) == 1, 300, "the first scenario running")
+        wait_for(lambda: len(staging(out)) == 1, 300, "the first scenario running")
         [server] = _forkservers(marker, run.proc.pid)
         os.kill(server, signal.SIGKILL)
         code = run.wait(300)

@@ -22,6 +22,8 @@ from tests.reliability_support import (
     marked_pids,
     results,
     scenario_toml,
+    staging,
+    wait_for,
     without_timing,
     write_catalog,
 )
@@ -36,19 +38,6 @@ def _six(tmp_path: Path) -> Path:
     return write_catalog(tmp_path / "six.toml",
                          [scenario_toml(f"run_{i}", lane=i % 2, pos_m=60.0 + 10 * i)
                           for i in range(N_SHORT)], duration_s=100.0)
-
-
-def _wait_for(predicate: object, timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():  # type: ignore[operator]
-            return
-        time.sleep(0.02)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
-def _staging(out: Path) -> list[Path]:
-    return [p for p in out.iterdir() if p.name.startswith(".partial-")] if out.is_dir() else []
 
 
 @pytest.mark.parametrize(("sig", "expected"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)],
@@ -66,7 +55,7 @@ def test_a_stop_then_resume_gives_the_results_of_one_uninterrupted_run(
     out = tmp_path / "interrupted"
     run = Background("run", str(catalog), "--out", str(out), "--no-log", "--jobs", "1")
     try:
-        _wait_for(lambda: "[2/6]" in run.out and _staging(out), 300,
+        wait_for(lambda: "[2/6]" in run.out and staging(out), 300,
                   "two finished scenarios and a third one running")
         os.killpg(run.proc.pid, sig)  # the whole job, as a terminal or a CI cancel does
         code = run.wait(60)
@@ -80,7 +69,7 @@ def test_a_stop_then_resume_gives_the_results_of_one_uninterrupted_run(
     done = int(match.group(1))
     assert 2 <= done < N_SHORT
     # what finished is kept and reported, exactly that; nothing half-written is left
-    assert not _staging(out)
+    assert not staging(out)
     partial = results(out)
     assert len(partial) == done and set(partial["status"]) == {"pass"}
     assert sorted(p.name for p in out.iterdir() if p.name.startswith("run_")) == \
@@ -109,13 +98,13 @@ def test_signal_to_the_parent_leaves_no_process_after_5_s(tmp_path: Path, sig: i
     run = Background("run", str(_two_long(tmp_path)), "--out", str(out), "--no-log", "--jobs",
                      "2", env=marked_env(marker))
     try:
-        _wait_for(lambda: len(_staging(out)) == 2, 300, "both scenario processes running")
+        wait_for(lambda: len(staging(out)) == 2, 300, "both scenario processes running")
         before = marked_pids(marker)
         assert len(before) >= 3, before  # the parent, its forkserver, the two workers
         os.kill(run.proc.pid, sig)  # a CI cancel signals the parent only
         t0 = time.monotonic()
         code = run.wait(30)
-        _wait_for(lambda: not marked_pids(marker), 5.0 - (time.monotonic() - t0),
+        wait_for(lambda: not marked_pids(marker), 5.0 - (time.monotonic() - t0),
                   f"every process of the run to end (left: {marked_pids(marker)})")
     finally:
         run.kill()
@@ -124,7 +113,7 @@ def test_signal_to_the_parent_leaves_no_process_after_5_s(tmp_path: Path, sig: i
         assert "interrupted: 0 of 2 done; resume with: " in run.out
         assert "Traceback" not in run.err, run.err
         assert (out / "report.html").is_file() and (out / "results.csv").is_file()
-        assert not _staging(out)
+        assert not staging(out)
     else:
         assert code == -signal.SIGKILL
     assert not (out / "stopped_0").exists() and not (out / "stopped_1").exists()
