@@ -375,22 +375,25 @@ def test_factory_validates_options() -> None:
 def test_closed_loop_passes_a_stalled_car() -> None:
     """Two-loop controller with the Ipopt outer loop on the STVM plant (no SUMO).
 
-    A stalled car in the lane 110 m ahead at 25 m/s (the paper's scenario): the ego
-    passes on the left, its CG never enters the car's ellipse (with the policy's
+    A stalled car in the lane 110 m ahead at 25 m/s (the paper's scenario), the left
+    lane free (production's behaviour, suite.run.scripted): the ego passes on the left,
+    its CG never enters the car's ellipse (with the policy's
     margins, no offset: stricter than the controller's own offset ellipse on the
     pass side), the boxes never overlap, Ipopt never fails.
     """
     from controllers.baselines.ipopt_nmpc import make_ipopt_nmpc
-    from controllers.behaviour.ellipses import FrenetVehicle
-    from controllers.sim.closed_loop import simulate
+    from suite.run.scripted import run_plant
+    from suite.world.scripted import ScriptedRoad, ScriptedVehicle
 
-    ctrl = make_ipopt_nmpc({})
-    trace = simulate(ctrl, np.array([[0.0, 0.0], [600.0, 0.0]]),
-                     vehicles=[FrenetVehicle(110.0, 0.0)], duration_s=7.0)
-    assert not trace["box_overlap"].any()
-    assert trace["ellipse_c_margin"][:, 0].min() > 0.0
-    assert trace["s_m"][-1] > 110.0 + 20.0
-    assert trace["y_m"].max() > 2.0
-    assert trace["fallback"].sum() == 0
-    assert np.all(np.isfinite(trace["residual"])) and trace["residual"].max() < 1e-5
-    assert trace["speed_mps"].min() > 20.0
+    road = ScriptedRoad(np.array([[0.0, 0.0], [600.0, 0.0]]), lane_count=2)
+    run = run_plant(make_ipopt_nmpc({}), road, (ScriptedVehicle("stalled", 110.0),),
+                    duration_s=7.0)
+    trace = run.trace
+    assert not trace.safety.geom_collision.any()
+    assert run.ellipse_values(margins=True)[:, 0].min() > 0.0
+    assert trace.ego.s_m[-1] > 110.0 + 20.0
+    assert trace.ego.lat_dev_m.max() > 2.0
+    assert trace.controller.fallback.sum() == 0
+    residual = trace.controller.residual
+    assert np.all(np.isfinite(residual)) and residual.max() < 1e-5
+    assert trace.ego.speed_mps.min() > 20.0

@@ -9,17 +9,18 @@ from typing import Any
 
 import numpy as np
 import pytest
+from plant_runs import CURVE, STRAIGHT, road, stalled
 
-from controllers.behaviour.ellipses import FrenetVehicle, ellipse_semi_axes
-from controllers.behaviour.types import LaneContext, LaneSlot, ObstaclePolicy, Obstacles
+from controllers.behaviour.ellipses import ellipse_semi_axes
+from controllers.behaviour.types import ObstaclePolicy, Obstacles
 from controllers.params import ParamError
 from controllers.path.frenet import FrenetPath
-from controllers.sim.closed_loop import simulate
 from controllers.two_loop.controller import make_two_loop
 from controllers.two_loop.fallback import FallbackParams, MinimalRiskManeuver, planner_emergency
 from controllers.two_loop.jerk import JerkLimiter, JerkLimitParams
 from controllers.two_loop.outer.protocol import OuterPlan
 from reports.metrics.comfort import sg
+from suite.run.scripted import PlantRun, run_plant
 
 M_R = 1500.0 * 0.3  # torque per unit acceleration [N m / (m/s²)]
 DT = 0.02
@@ -71,26 +72,23 @@ def test_bounds_must_be_positive(name: str, value: float) -> None:
         JerkLimitParams(**changes)
 
 
-def _close_start(jerk: dict[str, object]) -> dict[str, Any]:
+def _close_start(jerk: dict[str, object]) -> PlantRun:
     """Two lanes, ego at 25 m/s in the right one, a stalled car 55 m ahead in it at t = 0:
     too close to stop in comfortably, so the behaviour evades to the left."""
-    lanes = LaneContext({0: LaneSlot(0, 3.5, True, False), 1: LaneSlot(1, 3.5, True, False)}, 0)
-    road = np.array([[0.0, 0.0], [1500.0, 0.0]])
-    return simulate(make_two_loop({"jerk": jerk}), road, [FrenetVehicle(55.0, 0.0)],
-                    duration_s=8.0, dt=DT, initial_speed_mps=25.0, target_speed_mps=25.0,
-                    lanes=lanes)
+    return run_plant(make_two_loop({"jerk": jerk}), road(STRAIGHT), (stalled(55.0),),
+                     duration_s=8.0, step_s=DT, set_speed_mps=25.0)
 
 
 def test_close_stalled_car_is_evaded_within_the_jerk_limit_only_with_the_limiter() -> None:
-    limited, raw = _close_start({}), _close_start({"enabled": False})
+    limited, raw = _close_start({}).trace, _close_start({"enabled": False}).trace
     for tr in (limited, raw):
-        assert not tr["box_overlap"].any()
-        assert np.all(tr["fallback"] == 0)
-        assert np.max(tr["y_m"]) > 3.0  # into the left lane (and back after passing)
-    jerk = {k: float(np.max(np.abs(sg(tr["long_acc_mps2"], DT, 1))))
+        assert not tr.safety.geom_collision.any()
+        assert np.all(tr.controller.fallback == 0)
+        assert np.max(tr.ego.lat_dev_m) > 3.0  # into the left lane (and back after passing)
+    jerk = {k: float(np.max(np.abs(sg(tr.ego.long_acc_mps2, DT, 1))))
             for k, tr in (("limited", limited), ("raw", raw))}
     assert jerk["limited"] <= 4.13 < jerk["raw"], jerk  # nuPlan's longitudinal jerk bound
-    assert float(np.max(np.abs(limited["lat_acc_mps2"]))) <= 4.89
+    assert float(np.max(np.abs(limited.ego.lat_acc_mps2))) <= 4.89
 
 
 # ------------------------------------------------ start, actuator range, emergencies
@@ -166,19 +164,28 @@ def test_minimal_risk_manoeuvre_records_the_obstacle_it_braces_for() -> None:
     assert not mrm.emergency.active and mrm.ramp.decel_mps2 == fb.decel_mps2
 
 
+CAR_S = 70.0
+
+
 def test_a_stalled_car_still_triggers_emergency_braking_in_closed_loop() -> None:
-    """The paper's conversion without preview on the R = 400 m curve plans a hard stop in
-    front of the stalled car at s = 150 m (tests/test_two_loop_closed_loop.py): the
-    limiter lets it brake at the emergency rate, and the trace says which car: 150 m
-    minus the ego's s ahead, on the ego's line."""
-    th = np.linspace(0.0, 1.5, 300)
-    curve = np.column_stack([400.0 * np.sin(th), 400.0 * (1.0 - np.cos(th))])
-    tr = simulate(make_two_loop({"inner": {"preview": False, "feedforward": False}}), curve,
-                  [FrenetVehicle(150.0, 0.0)], duration_s=14.0, dt=DT, pass_side=1)
-    em = tr["emergency"].astype(bool)
-    assert em.any() and not tr["box_overlap"].any()
-    assert np.all(np.isnan(tr["emergency_ds_m"][~em]))
-    np.testing.assert_allclose(tr["emergency_ds_m"][em], 150.0 - tr["s_m"][em], atol=0.5)
-    np.testing.assert_allclose(tr["emergency_dy_m"][em], -tr["y_m"][em], atol=0.5)
-    assert np.all(tr["emergency_decel_mps2"][em] * 1.2 > FallbackParams().comfort_decel_mps2)
-    assert float(np.min(tr["long_acc_mps2"])) < -6.0  # it does brake hard
+    """A stalled car 70 m ahead on a one-lane R = 400 m curve at 25 m/s: no side is free
+    and it is too close to stop for comfortably, the plan brakes hard in front of it:
+    the limiter lets it brake at the emergency rate, and the trace says which car: 70 m
+    minus the ego's s ahead, on the ego's line. (Production's behaviour passes a car
+    150 m ahead on two lanes and follows it comfortably on one, so the former scenario,
+    a pass planned without preview that stopped in front instead, is none of its.)"""
+    run = run_plant(make_two_loop({}), road(CURVE, 1), (stalled(CAR_S),), duration_s=10.0,
+                    step_s=DT)
+    tr = run.trace
+    em = run.diagnostic("emergency").astype(bool)
+    assert em.any() and not tr.safety.geom_collision.any()
+    ds, dy = run.diagnostic("emergency_ds_m"), run.diagnostic("emergency_dy_m")
+    assert np.all(np.isnan(ds[~em]))
+    # the command of row k was computed from the state of row k - 1
+    s_before = np.concatenate([[0.0], tr.ego.s_m[:-1]])
+    y_before = np.concatenate([[0.0], tr.ego.lat_dev_m[:-1]])
+    np.testing.assert_allclose(ds[em], CAR_S - s_before[em], atol=0.5)
+    np.testing.assert_allclose(dy[em], -y_before[em], atol=0.5)
+    assert np.all(run.diagnostic("emergency_decel_mps2")[em] * 1.2
+                  > FallbackParams().comfort_decel_mps2)
+    assert float(np.min(tr.ego.long_acc_mps2)) < -6.0  # it does brake hard

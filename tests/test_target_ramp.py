@@ -11,11 +11,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from controllers.sim.closed_loop import simulate
 from controllers.two_loop.controller import make_two_loop
 from controllers.two_loop.outer.params import OcpParams
 from controllers.two_loop.outer.target_ramp import TargetSpeedRamp
 from reports.metrics.comfort import sg
+from suite.run.scripted import PlantRun, PlantStart, run_plant
+from suite.world.scripted import ScriptedRoad
 
 DT = 0.02
 STRAIGHT = np.array([[0.0, 0.0], [3000.0, 0.0]])
@@ -115,29 +116,31 @@ def test_set_speed_deceleration_is_validated() -> None:
 
 # ------------------------------------------------------- on the plant, two-loop
 def _drive(v0: float, set_speed: float, duration_s: float,
-           target_fn: Callable[[float, float], float] | None = None,
-           controller: Any = None) -> dict[str, Any]:
+           target_fn: Callable[[float], float] | None = None,
+           controller: Any = None) -> PlantRun:
+    """Empty straight road (production's loop, no SUMO); ``target_fn(t)``: the driver's
+    set speed over time."""
     ctl = controller if controller is not None else make_two_loop({})
-    return simulate(ctl, STRAIGHT, [], duration_s=duration_s, dt=DT,
-                    initial_speed_mps=v0, target_speed_mps=set_speed,
-                    target_speed_fn=target_fn)
+    return run_plant(ctl, ScriptedRoad(STRAIGHT), duration_s=duration_s, step_s=DT,
+                     start=PlantStart(speed_mps=v0), set_speed_mps=set_speed,
+                     set_speed_fn=target_fn)
 
 
-def _assert_comfortable_ramp(tr: dict[str, Any], v_from: float, v_to: float, t0_s: float,
+def _assert_comfortable_ramp(run: PlantRun, v_from: float, v_to: float, t0_s: float,
                              a_lim: float, t1_s: float = math.inf) -> None:
     """Within nuPlan's bounds over the run; in [t0_s, t1_s): at most the ramp's own
     acceleration a_lim (plus a margin for tracking), no emergency, no fallback, and v_to
     reached (within 0.5 m/s) by the ramp's time + 2 s, not before the fastest the
     limits allow, and held at the window's end."""
-    t = np.asarray(tr["t_s"])
-    acc = np.asarray(tr["long_acc_mps2"])
+    t = run.trace.t_s - DT  # when each command was computed
+    acc = run.trace.ego.long_acc_mps2
     win = (t >= t0_s) & (t < t1_s)
     assert LONG_ACC[0] <= acc.min() and acc.max() <= LONG_ACC[1]
     assert np.max(np.abs(acc[win])) <= a_lim + 0.25
     assert np.max(np.abs(sg(acc, DT, 1))) <= LONG_JERK
-    assert not np.any(np.asarray(tr["emergency"])[win])
-    assert not np.any(np.asarray(tr["fallback"])[win])
-    v = np.asarray(tr["speed_mps"])
+    assert not np.any(run.diagnostic("emergency")[win])
+    assert not np.any(run.trace.controller.fallback[win])
+    v = run.trace.ego.speed_mps
     near = win & (np.abs(v - v_to) <= 0.5)
     assert near.any()
     t_reach = float(t[near][0]) - t0_s
@@ -156,9 +159,9 @@ def test_set_speed_away_from_the_start_speed_is_a_comfortable_ramp(v0: float,
     o = OcpParams()
     a_lim = o.target_accel_mps2 if set_speed > v0 else o.set_speed_decel_mps2
     duration = ramp_time_s(set_speed - v0, a_lim, o.target_jerk_mps3) + 4.0
-    tr = _drive(v0, set_speed, duration)
-    _assert_comfortable_ramp(tr, v0, set_speed, 0.0, a_lim)
-    first = tr["torque_nm"][0]  # the first command: close to holding the speed
+    run = _drive(v0, set_speed, duration)
+    _assert_comfortable_ramp(run, v0, set_speed, 0.0, a_lim)
+    first = run.trace.ego.torque_nm[0]  # the first command: close to holding the speed
     assert abs(first) <= 0.5 * 1500.0 * 0.3
 
 
@@ -167,13 +170,13 @@ def test_a_set_speed_changed_later_is_a_ramp_both_ways() -> None:
     (both at or above the run's cruise set-point: the driver's, not a follow target)."""
     o = OcpParams()
 
-    def target(t: float, s: float) -> float:
+    def target(t: float) -> float:
         return 30.0 if 2.0 <= t < 10.0 else 25.0
 
-    tr = _drive(25.0, 25.0, 18.0, target_fn=target)
-    _assert_comfortable_ramp(tr, 25.0, 30.0, 2.0, o.target_accel_mps2, t1_s=10.0)
-    _assert_comfortable_ramp(tr, 30.0, 25.0, 10.0, o.set_speed_decel_mps2)
-    assert tr["ocp_target_speed_mps"][0] == pytest.approx(25.0)
+    run = _drive(25.0, 25.0, 18.0, target_fn=target)
+    _assert_comfortable_ramp(run, 25.0, 30.0, 2.0, o.target_accel_mps2, t1_s=10.0)
+    _assert_comfortable_ramp(run, 30.0, 25.0, 10.0, o.set_speed_decel_mps2)
+    assert run.diagnostic("ocp_target_speed_mps")[0] == pytest.approx(25.0)
 
 
 def test_ipopt_baseline_ramps_the_same_way() -> None:
@@ -181,5 +184,5 @@ def test_ipopt_baseline_ramps_the_same_way() -> None:
     from controllers.baselines.ipopt_nmpc import make_ipopt_nmpc
 
     o = OcpParams()
-    tr = _drive(33.0, 27.0, 8.0, controller=make_ipopt_nmpc({}))
-    _assert_comfortable_ramp(tr, 33.0, 27.0, 0.0, o.set_speed_decel_mps2)
+    run = _drive(33.0, 27.0, 8.0, controller=make_ipopt_nmpc({}))
+    _assert_comfortable_ramp(run, 33.0, 27.0, 0.0, o.set_speed_decel_mps2)

@@ -22,34 +22,16 @@ sitting on the reference path (paper Fig. 7); B includes ``offset_m`` so that th
 shift never eats into the margin on the pass side. With pass_side = 0 (no free
 side / follow mode) there is no shift.
 
-Detection: Euclidean distance in (s, y) from the ego CG to the obstacle centre
-below ``detection_distance_m`` and not more than ``rear_range_m`` behind the CG;
-nearest first, at most ``max_obstacles``. Without ``moving_obstacles``, only
-(near-)stationary vehicles (|v| < 0.5 m/s) are kept and their speed is zeroed.
+Which vehicles become ellipses is the lane behaviour's choice
+(:mod:`controllers.behaviour.obstacle_choice`).
 """
 
 from __future__ import annotations
-
-from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from controllers.behaviour.types import ObstaclePolicy, Obstacles
 from controllers.path.frenet import FrenetPath
-from controllers.plant.vehicle_model import VehicleParams
-
-
-@dataclass(frozen=True)
-class FrenetVehicle:
-    """Another vehicle in the reference-path Frenet frame (box centre, box size, velocity)."""
-
-    s_m: float
-    y_m: float
-    length_m: float = 4.8
-    width_m: float = 1.9
-    speed_s_mps: float = 0.0
-    speed_y_mps: float = 0.0
 
 
 def lateral_margin_m(policy: ObstaclePolicy) -> float:
@@ -85,32 +67,6 @@ def box_half_length_m(semi_a_m: np.ndarray, semi_b_m: np.ndarray,
 def offset_centre_y(y_m: float, pass_side: int, policy: ObstaclePolicy) -> float:
     """Centre y shifted by offset_m away from the pass side (no shift if pass_side = 0)."""
     return float(y_m) - float(np.sign(pass_side)) * policy.offset_m
-
-
-def build_obstacles(ego_s_m: float, ego_y_m: float, vehicles: Sequence[FrenetVehicle],
-                    policy: ObstaclePolicy, ego: VehicleParams, pass_side: int) -> Obstacles:
-    """Detected vehicles -> :class:`Obstacles` (nearest first), see module docstring."""
-    rows = []
-    for veh in vehicles:
-        ds = veh.s_m - ego_s_m
-        dist = float(np.hypot(ds, veh.y_m - ego_y_m))
-        if dist > policy.detection_distance_m or ds < -policy.rear_range_m:
-            continue
-        vs, vy = veh.speed_s_mps, veh.speed_y_mps
-        if not policy.moving_obstacles:
-            if np.hypot(vs, vy) > 0.5:
-                continue
-            vs, vy = 0.0, 0.0
-        a, b = ellipse_semi_axes(veh.length_m, veh.width_m, ego.length_m, ego.width_m, policy)
-        rows.append((dist, veh.s_m, offset_centre_y(veh.y_m, pass_side, policy), vs, vy, a, b))
-    rows.sort(key=lambda r: r[0])
-    rows = rows[:policy.max_obstacles]
-    if not rows:
-        return Obstacles.empty()
-    arr = np.array(rows, dtype=np.float64)
-    return Obstacles(s_m=arr[:, 1].copy(), y_m=arr[:, 2].copy(), speed_s_mps=arr[:, 3].copy(),
-                     speed_y_mps=arr[:, 4].copy(), semi_a_m=arr[:, 5].copy(),
-                     semi_b_m=arr[:, 6].copy())
 
 
 def ellipse_value(s_m: np.ndarray | float, y_m: np.ndarray | float, centre_s_m: float,

@@ -152,7 +152,7 @@ def second_difference_rms(signal: FloatArray, step_s: float, window: Window) -> 
     """RMS of the second difference (x_{i+1} − 2 x_i + x_{i−1}) / dt² over the window's
     interior rows [unit/s²]: for a smooth signal the RMS of its second derivative; a
     command flipping from step to step of amplitude a gives 4 a / dt² (the chatter
-    measure of the plant-only tests, ``controllers.sim.closed_loop.steering_chatter``)."""
+    measure of the plant-only tests, ``suite.run.scripted.steering_chatter``)."""
     d2 = np.diff(np.asarray(signal, dtype=np.float64), 2) / step_s ** 2
     rows = np.arange(1, signal.size - 1)
     inside = (rows >= window.start) & (rows < window.stop)

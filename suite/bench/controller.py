@@ -1,14 +1,16 @@
 """``hwyeval bench``'s controller part: the two-loop controller timed on the plant-only loop.
 
-``run_benchmark`` drives :class:`TwoLoopController` on a straight road at 25 m/s
-past three stalled cars (one in the ego lane, two in the right lane, so that all
-obstacle slots are active while passing), with the runner's lateral reference
-(+3.5 m from detection of the car in the ego lane until 15 m past it), twice:
+``run_benchmark`` drives :class:`TwoLoopController` on production's loop without SUMO
+(:func:`suite.run.scripted.run_plant`: the lane behaviour, the plant, the recorder) on a
+straight three-lane road at 25 m/s, the ego in the middle lane, past three stalled
+cars (one in the ego lane 150 m ahead, two in the right lane at 120 m and 170 m): the
+behaviour passes on the left (lateral reference +3.5 m) and back, with the cars it
+selects as obstacles. Twice:
 
 1. with every C/GMRES sub-update called and timed separately -> per-update times
    (one update = k_max + 3 residual evaluations + GMRES + Euler + guard, compiled);
 2. normally (all sub-updates in one compiled call) -> the whole control step as
-   the runner sees it (``controller.step`` wall time: projection, lateral shaper,
+   the loop sees it (``controller.step`` wall time: projection, lateral shaper,
    launch check, outer loop, inner loop with preview, command and logging arrays).
 
 The first ``warmup_steps`` steps (numba cache loading, first calls) are dropped.
@@ -19,51 +21,23 @@ returned. One run only; the numbers depend on the machine's load.
 from __future__ import annotations
 
 import platform
-import time
 from collections.abc import Callable, Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
-from controllers.behaviour.ellipses import FrenetVehicle
-from controllers.behaviour.types import ObstaclePolicy
 from controllers.params import to_dict
 from controllers.path.frenet import FrenetPath
-from controllers.protocol import Command, Observation, ScenarioContext, StepDiagnostics
-from controllers.sim.closed_loop import pass_reference, simulate
 from controllers.two_loop.controller import TwoLoopController
-from controllers.two_loop.diagnostics import TwoLoopDiagnostics
 from controllers.two_loop.outer.cgmres import CgmresOuter
-from controllers.two_loop.outer.protocol import OuterPlan, OuterPlanner
+from controllers.two_loop.outer.protocol import OuterPlanner
 from controllers.two_loop.params import two_loop_params
+from suite.run.scripted import run_plant
+from suite.world.scripted import ScriptedRoad, ScriptedVehicle
 
-
-class _TimedController:
-    """Wraps a controller and records the wall time of every ``step``."""
-
-    diagnostics_type: ClassVar[type[StepDiagnostics]] = TwoLoopDiagnostics
-
-    def __init__(self, inner: TwoLoopController) -> None:
-        self.inner = inner
-        self.name = inner.name
-        self.obstacle_policy: ObstaclePolicy | None = inner.obstacle_policy
-        self.step_times_s: list[float] = []
-
-    @property
-    def plan(self) -> OuterPlan | None:
-        return self.inner.plan
-
-    def reset(self, context: ScenarioContext) -> None:
-        self.inner.reset(context)
-
-    def step(self, observation: Observation) -> Command:
-        t0 = time.perf_counter()
-        cmd = self.inner.step(observation)
-        self.step_times_s.append(time.perf_counter() - t0)
-        return cmd
-
-    def parameters(self) -> Mapping[str, Any]:
-        return self.inner.parameters()
+ROAD = ScriptedRoad(np.array([[0.0, 0.0], [2000.0, 0.0]]), lane_count=3, reference_lane=1)
+CARS = (ScriptedVehicle("ego_lane", 150.0, 1), ScriptedVehicle("right_far", 170.0, 0),
+        ScriptedVehicle("right_near", 120.0, 0))
 
 
 def _stats(times_s: np.ndarray) -> dict[str, float]:
@@ -79,8 +53,6 @@ def run_benchmark(options: Mapping[str, Any] | None = None, duration_s: float = 
                   ) -> dict[str, Any]:
     """Run the benchmark; ``options`` are two-loop catalog options (defaults otherwise)."""
     params = two_loop_params(dict(options or {}))
-    road = np.array([[0.0, 0.0], [2000.0, 0.0]])
-    cars = [FrenetVehicle(150.0, 0.0), FrenetVehicle(170.0, -3.5), FrenetVehicle(120.0, -3.5)]
     results: dict[str, Any] = {"params": to_dict(params), "machine": platform.processor()
                                or platform.machine(), "python": platform.python_version()}
     # 1) per-update timing: every C/GMRES sub-update called and timed on its own
@@ -92,29 +64,23 @@ def run_benchmark(options: Mapping[str, Any] | None = None, duration_s: float = 
         timed_outers.append(outer)
         return outer
 
-    ctl = TwoLoopController(params, timed_planner)
-    detect_m = params.policy.detection_distance_m
-
-    # The runner's lateral reference: the left lane while the car in the ego lane is passed.
-    def lateral() -> Any:
-        return pass_reference(150.0, 1, 3.5, detect_m, 15.0)
-
-    tr1 = simulate(ctl, road, cars, duration_s=duration_s, pass_side=1, lateral_fn=lateral())
+    run1 = run_plant(TwoLoopController(params, timed_planner), ROAD, CARS,
+                     duration_s=duration_s)
     sub = np.asarray(timed_outers[-1].subupdate_times_s, dtype=np.float64)
     sub = sub[warmup_steps * params.outer.sub_updates:]
     # 2) whole control step
-    timed = _TimedController(TwoLoopController(params))
-    tr2 = simulate(timed, road, cars, duration_s=duration_s, pass_side=1, lateral_fn=lateral())
-    steps = np.asarray(timed.step_times_s[warmup_steps:])
+    run2 = run_plant(TwoLoopController(params), ROAD, CARS, duration_s=duration_s)
+    steps = run2.step_times_s[warmup_steps:]
+    ctl = run2.trace.controller
     results["outer_update"] = _stats(sub) if sub.size else {}
     results["control_step"] = _stats(steps)
-    results["outer_loop_per_step"] = _stats(tr2["outer_s"][warmup_steps:])
-    results["inner_loop_per_step"] = _stats(tr2["inner_s"][warmup_steps:])
-    results["residual_max"] = float(np.max(tr2["residual"]))
-    results["residual_median"] = float(np.median(tr2["residual"]))
-    results["fallbacks"] = int(np.sum(tr2["fallback"]))
-    results["guard_fired"] = int(np.sum(tr2["guard_fired"]))
-    results["min_ellipse_c"] = float(np.min(tr1["ellipse_c"]))
+    results["outer_loop_per_step"] = _stats(ctl.outer_s[warmup_steps:])
+    results["inner_loop_per_step"] = _stats(ctl.inner_s[warmup_steps:])
+    results["residual_max"] = float(np.max(ctl.residual))
+    results["residual_median"] = float(np.median(ctl.residual))
+    results["fallbacks"] = int(np.sum(ctl.fallback))
+    results["guard_fired"] = int(np.sum(ctl.guard_fired))
+    results["min_ellipse_c"] = float(np.min(run1.ellipse_values()))
     if print_fn is not None:
         o = params.outer
         print_fn(f"two_loop benchmark: cost={o.cost} N={o.n_stages} "
