@@ -27,8 +27,13 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
-# Reassociation lets the dot products vectorise; no 'nnan'/'ninf' (finite checks stay valid).
-_FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
+# Fast-math flags of the hot kernels: no 'nnan'/'ninf' (non-finite checks stay valid), and
+# no 'reassoc'/'contract': with them LLVM may reorder sums and fuse multiply-adds
+# differently when a kernel is compiled in the run's process than when it comes from
+# numba's cache, so the first run after an install or a change gave other numbers than
+# every later one (a two_loop run of the paper catalog differed from step 1). Without
+# them a kernel computes the same bits however it was compiled.
+_FM = {"nsz", "arcp", "afn"}
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=_FM)

@@ -22,8 +22,13 @@ _P_CYT, _P_CET, _P_VT, _P_SCALE = 9, 10, 11, 12
 _P_YREF, _P_YREFD = 13, 14  # lateral reference yr [m] and its rate [m/s] (C/GMRES only)
 _P_CYR = 15  # rate of Cy [1/(m² s²)] when the caller schedules it (C/GMRES only)
 N_PACKED = 16
-# Fast-math flags for the hot kernels: no 'nnan'/'ninf', so non-finite checks stay valid.
-_FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
+# Fast-math flags of the hot kernels: no 'nnan'/'ninf' (non-finite checks stay valid), and
+# no 'reassoc'/'contract': with them LLVM may reorder sums and fuse multiply-adds
+# differently when a kernel is compiled in the run's process than when it comes from
+# numba's cache, so the first run after an install or a change gave other numbers than
+# every later one (a two_loop run of the paper catalog differed from step 1). Without
+# them a kernel computes the same bits however it was compiled.
+_FM = {"nsz", "arcp", "afn"}
 # Obstacle table columns: s, y, v_s, v_y, A, B, active, barrier weight w, dw/dt.
 OBS_COLS = 9
 
