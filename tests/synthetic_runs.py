@@ -225,14 +225,18 @@ def approach_run_parts(gap_end_m: float = 20.0, ego_speed_mps: float = 20.0,
 
 
 def ellipse_arrays(trace: Trace, centre_xy: Sequence[float], semi_a_m: float,
-                   semi_b_m: float, heading_rad: float = 0.0) -> ControllerArrays:
-    """Controller arrays with one static active ellipse (of two slots) at every step."""
+                   semi_b_m: float, heading_rad: float = 0.0, vehicle_id: str = ""
+                   ) -> ControllerArrays:
+    """Controller arrays with one static active ellipse (of two slots) at every step,
+    of vehicle ``vehicle_id`` ('' unknown)."""
     n = len(trace)
     ell = np.full((n, 2, 6), np.nan)
     ell[:, 0] = [centre_xy[0], centre_xy[1], heading_rad, semi_a_m, semi_b_m, 1.0]
+    ids = np.full((n, 2), "", dtype="<U32")
+    ids[:, 0] = vehicle_id
     return ControllerArrays(plan_xy_m=np.full((n, 3, 2), np.nan),
                             preview_xy_m=np.full((n, 3, 2), np.nan), ellipses=ell,
-                            detection_radius_m=80.0)
+                            detection_radius_m=80.0, ellipse_ids=ids)
 
 
 # --------------------------------------------------------------------------- records
@@ -319,7 +323,8 @@ def catalog_records(controllers: Sequence[str] = ("ctrl_a", "ctrl_b"),
         nb = lead_vehicle(tr, np.full(len(tr), 150.0), 0.0, 0.0, vid="stalled0", stalled=True)
         tr.safety.min_gap_m[:] = np.maximum(np.abs(150.0 - tr.ego.x_m) - EGO_LENGTH_M, 0.5)
         out.append((f"stalled_pass_left__{ctrl}", make_record(
-            tr, neighbours=nb, arrays=ellipse_arrays(tr, (150.0, 0.3), 6.6, 2.2),
+            tr, neighbours=nb, arrays=ellipse_arrays(tr, (150.0, 0.3), 6.6, 2.2,
+                                                 vehicle_id="stalled0"),
             info=info("stalled_pass_left", "stalled"),
             outcome=ok(10.0, 2.5, stalled=(stalled,)))))
 

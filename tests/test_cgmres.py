@@ -22,7 +22,12 @@ from controllers.two_loop.outer.cgmres_kernel import (
     work_size,
 )
 from controllers.two_loop.outer.gmres import cgmres_step
-from controllers.two_loop.outer.ocp_layout import obstacle_table, pack_params, stage_width
+from controllers.two_loop.outer.ocp_layout import (
+    obstacle_row,
+    obstacle_table,
+    pack_params,
+    stage_width,
+)
 from controllers.two_loop.outer.params import CgmresParams
 from controllers.two_loop.outer.spmm_problem import SpmmProblem
 
@@ -111,7 +116,7 @@ def test_cgmres_converges_to_reference_solution(cost: str) -> None:
     params = CgmresParams(cost=cost, horizon_growth_rate=5.0,
                           k_max=16 if cost == "J2" else 12)
     obs = obstacle_table(2)
-    obs[0] = [50.0, -0.3, 0.0, 0.0, 6.8, 2.3, 1.0, 1.0, 0.0]
+    obs[0] = obstacle_row(50.0, -0.3, 6.8, 2.3)
     x0 = np.array([10.0, 0.0, 0.0])
     u, es = _converge_fixed(params, obs, x0, 25.0, path)
     assert es[-1] < 1e-8, es[-1]
@@ -142,7 +147,7 @@ def test_guard_keeps_barrier_argument_positive() -> None:
     params = CgmresParams(n_stages=10)
     prob = SpmmProblem(path, params)
     obs = obstacle_table(1)
-    obs[0] = [40.0, -0.3, 0.0, 0.0, 6.8, 2.3, 1.0, 1.0, 0.0]
+    obs[0] = obstacle_row(40.0, -0.3, 6.8, 2.3)
     x0 = np.array([0.0, 0.0, 0.0])
     u = prob.initial_guess(x0, obs, 25.0)
     m = stage_width(1)
@@ -248,7 +253,7 @@ def test_cgmres_solution_is_ipopts_local_minimum() -> None:
     k_obs = 1
     params = CgmresParams(horizon_growth_rate=5.0, n_stages=12)
     obs = obstacle_table(k_obs)
-    obs[0] = [50.0, -0.3, 0.0, 0.0, 6.8, 2.3, 1.0, 1.0, 0.0]
+    obs[0] = obstacle_row(50.0, -0.3, 6.8, 2.3)
     x0 = np.array([10.0, 0.0, 0.0])
     vt = 25.0
     u, es = _converge_fixed(params, obs, x0, vt, path)
@@ -333,7 +338,7 @@ def test_cgmres_converges_with_lateral_reference(cost: str) -> None:
     path = FrenetPath.cached(STRAIGHT)
     params = CgmresParams(cost=cost, horizon_growth_rate=5.0, c_y_terminal=0.5)
     obs = obstacle_table(1)
-    obs[0] = [50.0, -0.3, 0.0, 0.0, 6.8, 2.3, 1.0, 1.0, 0.0]
+    obs[0] = obstacle_row(50.0, -0.3, 6.8, 2.3)
     x0 = np.array([10.0, 0.0, 0.0])
     prob = SpmmProblem(path, params)
     u = prob.initial_guess(x0, obs, 25.0, lateral_reference_m=3.5)
@@ -353,7 +358,8 @@ def test_cgmres_converges_with_lateral_reference(cost: str) -> None:
         t += 0.005
     assert np.array_equal(prm, prm_before)  # the kernel restores its parameters
     assert stats[0] < 1e-7, stats[0]
-    prm[12] = 0.0
+    # the residual unscaled: the same parameters packed without row scaling
+    prm = pack_params(params, 25.0, 3.5, lateral_weight=5.0, row_scaling=False)
     f = np.empty(u.size)
     from controllers.two_loop.outer.ocp import ocp_residual
 

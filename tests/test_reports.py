@@ -241,3 +241,12 @@ def test_importing_the_record_schema_loads_no_renderer() -> None:
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_the_birdseye_names_the_vehicle_behind_each_ellipse(catalog: Path) -> None:
+    pages = sorted((catalog / "report-runs").glob("stalled_pass_left__*.html"))
+    assert pages
+    page = pages[0].read_text()
+    found = re.findall(r'<polygon [^>]*data-vehicle="([^"]*)"><title>obstacle ellipse( of '
+                       r'[^ ]+)? at', page)
+    assert found and all(vid == "stalled0" and of == " of stalled0" for vid, of in found)

@@ -245,14 +245,18 @@ def _ellipses(rec: RunRecord, verdict: Verdict | None, v: _View) -> list[str]:
     idx = step if 0 <= step < len(ell) else row
     ang = np.linspace(0.0, 2 * np.pi, 37)
     out = []
-    for e in ell[min(idx, len(ell) - 1)].reshape(-1, ell.shape[-1]):
+    at = min(idx, len(ell) - 1)
+    for slot, e in enumerate(ell[at].reshape(-1, ell.shape[-1])):
         if e.size < 6 or not (np.all(np.isfinite(e[:5])) and e[5] > 0.5):
             continue
         ex = e[0] + e[3] * np.cos(ang) * math.cos(e[2]) - e[4] * np.sin(ang) * math.sin(e[2])
         ey = e[1] + e[3] * np.cos(ang) * math.sin(e[2]) + e[4] * np.sin(ang) * math.cos(e[2])
+        vid = rec.arrays.ellipse_id(at, slot)
+        of = f" of {esc(vid)}" if vid else ""
         out.append(f'<polygon points="{v.pts(ex, ey)}" fill="#f59e0b" fill-opacity="0.12" '
-                   'stroke="#d97706" stroke-dasharray="4 3" stroke-width="1">'
-                   f"<title>obstacle ellipse at t={fmt(rec.trace.t_s[row], 4)} s "
+                   f'stroke="#d97706" stroke-dasharray="4 3" stroke-width="1" '
+                   f'data-vehicle="{esc(vid)}">'
+                   f"<title>obstacle ellipse{of} at t={fmt(rec.trace.t_s[row], 4)} s "
                    f"(min margin {fmt(metric.value, 3)})</title></polygon>")
     return out
 

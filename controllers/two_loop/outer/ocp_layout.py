@@ -13,8 +13,8 @@ import numpy as np
 
 from controllers.two_loop.outer.params import OcpParams
 
-__all__ = ["N_PACKED", "OBS_COLS", "obstacle_table", "pack_params", "stage_fractions",
-           "stage_times", "stage_width"]
+__all__ = ["N_PACKED", "OBS_COLS", "obstacle_row", "obstacle_table", "pack_params",
+           "stage_fractions", "stage_times", "stage_width"]
 
 # Indices into the packed parameter vector.
 _P_COST, _P_CY, _P_CYD, _P_CSD, _P_CTHD, _P_CTH, _P_CV, _P_CZ, _P_ZETA = range(9)
@@ -85,6 +85,21 @@ def pack_params(params: OcpParams, target_speed_mps: float,
     out[_P_YREFD] = lateral_reference_rate_mps
     out[_P_CYR] = lateral_weight_rate
     return out
+
+
+def obstacle_row(s_m: float, y_m: float, a_m: float, b_m: float, *, vs_mps: float = 0.0,
+                 vy_mps: float = 0.0, active: bool = True, weight: float = 1.0,
+                 weight_rate_1ps: float = 0.0) -> np.ndarray:
+    """One slot of the obstacle table (OBS_COLS,): an ellipse centred at (s, y) [m] with
+    semi-axes A = ``a_m`` along s and B = ``b_m`` across [m], moving at (v_s, v_y) [m/s],
+    barrier weight in [0, 1] changing at ``weight_rate_1ps`` [1/s]
+    (:func:`obstacle_table` names the columns)."""
+    if not (a_m > 0.0 and b_m > 0.0):
+        raise ValueError(f"a_m/b_m: expected > 0, got {a_m}/{b_m}")
+    if not 0.0 <= weight <= 1.0:
+        raise ValueError(f"weight: expected in [0, 1], got {weight}")
+    return np.array([s_m, y_m, vs_mps, vy_mps, a_m, b_m, 1.0 if active else 0.0, weight,
+                     weight_rate_1ps], dtype=np.float64)
 
 
 def obstacle_table(n_slots: int) -> np.ndarray:
