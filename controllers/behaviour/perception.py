@@ -20,6 +20,7 @@ acceleration lane must merge: it leads the lane it merges into).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -274,15 +275,15 @@ class LaneScene:
         if self.traffic.count == 0 or not self.lanes:
             return []
         on_route = self.context.reference_index_by_road
+        candidates = _OFF_ROUTE.indices(self.traffic.road_id, on_route)
+        if not candidates:
+            return []
         edges = [(self.offset_m(r) - 0.5 * slot.width_m, self.offset_m(r) + 0.5 * slot.width_m)
                  for r, slot in self.lanes.items()]
         right, left = min(e[0] for e in edges), max(e[1] for e in edges)
         ds, fn = self.ds_m, self.fn
         out = []
-        for j in range(self.traffic.count):
-            road = self.traffic.road_id[j]
-            if not road or road in on_route or road.startswith(":"):
-                continue
+        for j in candidates:
             if not -behind_m <= float(ds[j]) <= ahead_m or fn.v_s_mps[j] < 1.0:
                 continue
             if abs(math.atan2(float(fn.v_y_mps[j]), float(fn.v_s_mps[j]))) > ENTRY_HEADING_RAD:
@@ -360,20 +361,73 @@ def _nearest_in_lane(rel_lane: IntArray, y_m: FloatArray, v_y_mps: FloatArray,
     return best
 
 
+class _OffRouteRoads:
+    """The vehicles on a known road off the route (not empty, not a junction's, not
+    one the lane context places on the route): :meth:`LaneScene._entering_near`'s first
+    test, which depends on the roads only. The roads are SUMO's last step's (the same
+    tuple object between SUMO steps, :func:`suite.world.multirate.extrapolate_traffic`),
+    so the last answer is kept for that tuple and an equal route mapping."""
+
+    def __init__(self) -> None:
+        self._roads: tuple[str, ...] | None = None
+        self._on_route: dict[str, int] = {}
+        self._indices: list[int] = []
+
+    def indices(self, roads: tuple[str, ...], on_route: Mapping[str, int]) -> list[int]:
+        """Indices j (ascending) of ``roads[j]`` off the route."""
+        if roads is not self._roads or on_route != self._on_route:
+            self._indices = [j for j, road in enumerate(roads)
+                             if road and road not in on_route and not road.startswith(":")]
+            self._roads, self._on_route = roads, dict(on_route)
+        return self._indices
+
+
+class _ExactLanes:
+    """The last :func:`relative_lanes` answer that came from the world's road and lane
+    indices alone (every vehicle on a road of the route, lane known): it holds while the
+    roads and lane indices are the same objects (SUMO's last step's, shared by the
+    extrapolated scenes in between) and the route mapping is equal."""
+
+    def __init__(self) -> None:
+        self._key: tuple[object, object] | None = None
+        self._by_road: dict[str, int] = {}
+        self._out = np.zeros(0, dtype=np.int64)
+
+    def get(self, traffic: Traffic, by_road: Mapping[str, int]) -> IntArray | None:
+        key = self._key
+        if key is None or key[0] is not traffic.road_id or key[1] is not traffic.lane_index \
+                or by_road != self._by_road:
+            return None
+        return self._out.copy()
+
+    def put(self, traffic: Traffic, by_road: Mapping[str, int], out: IntArray) -> None:
+        self._key = (traffic.road_id, traffic.lane_index)
+        self._by_road = dict(by_road)
+        self._out = out.copy()
+
+
+_OFF_ROUTE = _OffRouteRoads()
+_EXACT_LANES = _ExactLanes()
+
+
 def relative_lanes(traffic: Traffic, fn: FrenetTraffic, context: LaneContext,
                    lane_width_m: float) -> IntArray:
     """Relative lane of every vehicle (module docstring)."""
     n = traffic.count
-    out = np.zeros(n, dtype=np.int64)
     if n == 0:
-        return out
+        return np.zeros(0, dtype=np.int64)
+    by_road = context.reference_index_by_road
+    known = _EXACT_LANES.get(traffic, by_road)
+    if known is not None:
+        return known
+    out = np.zeros(n, dtype=np.int64)
+    exact = True
     order = sorted(context.slots)
     ref = context.reference_index
     ref_ok = ref in context.slots and math.isfinite(context.slots[ref].offset_m)
     offset_list = [context.slots[i].offset_m for i in order]
     geometric = bool(order) and ref_ok and all(math.isfinite(o) for o in offset_list)
     offsets = np.array(offset_list, dtype=np.float64)
-    by_road = context.reference_index_by_road
     # Python ints and lists in the loop: indexing numpy arrays one element at a time
     # costs more than the work (the loop runs over every vehicle, every step).
     for j, (road, lane) in enumerate(zip(traffic.road_id, traffic.lane_index.tolist(),
@@ -381,7 +435,9 @@ def relative_lanes(traffic: Traffic, fn: FrenetTraffic, context: LaneContext,
         ref_lane = by_road.get(road)
         if ref_lane is not None and lane >= 0:
             out[j] = lane - ref_lane
-        elif geometric:
+            continue
+        exact = False
+        if geometric:
             k = int(np.argmin(np.abs(fn.y_m[j] - offsets)))
             extra = 0.0
             if fn.y_m[j] > offsets[-1] + 0.5 * lane_width_m:
@@ -391,4 +447,6 @@ def relative_lanes(traffic: Traffic, fn: FrenetTraffic, context: LaneContext,
             out[j] = k - order.index(ref) + int(extra)
         else:
             out[j] = int(round(fn.y_m[j] / lane_width_m))
+    if exact:
+        _EXACT_LANES.put(traffic, by_road, out)
     return out

@@ -1,9 +1,10 @@
 """Neutral array types of the behaviour layer: what the world hands over, what is decided.
 
-The behaviour layer sits between the world (SUMO, or the plant-only simulator) and the
-controller: other vehicles and lane context in, obstacle ellipses, a pass side, a
+The behaviour layer sits between the world (SUMO, or the scripted plant-only world) and
+the controller: other vehicles and lane context in, obstacle ellipses, a pass side, a
 lateral reference and a speed target out. These types carry no SUMO object; the SUMO
-adapter (``suite.world``) and :mod:`controllers.sim.closed_loop` both produce them.
+adapter (``suite.world.sumo``) and the scripted world (``suite.world.scripted``) both
+produce them.
 
 Frames: world = network coordinates [m], headings CCW from +X [rad]; Frenet = arc
 length ``s`` along the controller's reference path [m] and lateral offset ``y``, left
@@ -132,6 +133,21 @@ class Traffic:
     @property
     def count(self) -> int:
         return len(self.ids)
+
+    def moved(self, x_m: FloatArray, y_m: FloatArray) -> Traffic:
+        """These vehicles with box centres ``x_m``, ``y_m`` [m] (shape (n,), as this
+        one's), everything else shared. The shapes are checked against this (already
+        checked) instance only: no full re-validation, the extrapolation between SUMO
+        steps makes one of these every control step."""
+        n = len(self.ids)
+        if x_m.shape != (n,) or y_m.shape != (n,):
+            raise ValueError(f"Traffic.moved: positions must have shape ({n},), got "
+                             f"{x_m.shape} and {y_m.shape}")
+        out = object.__new__(Traffic)
+        fields = dict(self.__dict__)
+        fields["x_m"], fields["y_m"] = x_m, y_m
+        out.__dict__.update(fields)
+        return out
 
     @staticmethod
     def empty() -> Traffic:

@@ -162,6 +162,8 @@ class TraceRecorder:
         self._extra = extra_diagnostics(diagnostics_type)
         self._get_extra = operator.attrgetter(*self._extra) if self._extra else None
         self.trace = Trace.allocate(n_steps, self._extra)
+        # the extras row by row (one array write a step), into trace.extra at finish
+        self._extra_rows = np.full((n_steps, len(self._extra)), np.nan)
         self.path = path
         self.record_radius_m = record_radius_m
         self._radius2 = float(record_radius_m) ** 2
@@ -235,9 +237,8 @@ class TraceRecorder:
             values = self._get_extra(diag)
             if len(self._extra) == 1:
                 values = (values,)
-            extra = self.trace.extra
-            for name, value in zip(self._extra, values, strict=True):
-                extra[name][i] = float(value)
+            # float() of each, as a column per field would store them
+            self._extra_rows[i] = [float(v) for v in values]
 
     def _neighbours(self, step: int, t_s: float, ego: EgoState, traffic: Traffic) -> None:
         """Rows of the vehicles within the recording radius of the ego's CG, in one
@@ -310,6 +311,8 @@ class TraceRecorder:
     def finish(self, detection_radius_m: float) -> tuple[Trace, NeighbourColumns,
                                                          ControllerArrays]:
         """The recorded rows (the trace cut to the steps run)."""
+        for k, name in enumerate(self._extra):
+            self.trace.extra[name][: self.rows] = self._extra_rows[: self.rows, k]
         trace = self.trace.head(self.rows)
         if self._nb.size:
             nb = NeighbourColumns(id=np.array(self._nb_ids, dtype=object),

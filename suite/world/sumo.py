@@ -52,13 +52,20 @@ from suite.catalog import Scenario
 from suite.catalog.tracks import read_tracks
 from suite.road.network import RoadNetwork
 from suite.world.actors import ActorScript
-from suite.world.multirate import MultiRate, extrapolate_traffic
+from suite.world.multirate import MultiRate, extrapolate_traffic, headings
 from suite.world.protocol import EgoPose, Scene, WorldEgo, WorldSummary
 from suite.world.replay import HandoverEgo, ReplayAgents
 from suite.world.routes import EGO_ID, STALLED_PREFIX, RouteFile
 from suite.world.ssm import parse_ssm
 
 HAZARD_SIGNAL = 1 << 2  # SUMO VEH_SIGNAL_BLINKER_EMERGENCY
+# The ego's subscribed variables (traci.constants' codes: VAR_POSITION, VAR_ANGLE,
+# VAR_SPEED, VAR_ACCELERATION, VAR_LANE_INDEX, VAR_ROAD_ID, VAR_LANE_ID,
+# VAR_LANEPOSITION), read once per SUMO step by SumoWorld._ego.
+_POSITION, _ANGLE, _SPEED, _ACCELERATION = 0x42, 0x43, 0x40, 0x72
+_LANE_INDEX, _ROAD_ID, _LANE_ID, _LANE_POSITION = 0x52, 0x50, 0x51, 0x56
+_EGO_VARS = (_POSITION, _ANGLE, _SPEED, _ACCELERATION, _LANE_INDEX, _ROAD_ID, _LANE_ID,
+             _LANE_POSITION)
 SENSING_RADIUS_M = 300.0  # vehicles this close to the ego are reported every step
 
 
@@ -112,6 +119,8 @@ class SumoWorld:
                               float(scenario.step_s))
         self._k = 0  # control steps since the start
         self._held: Scene | None = None  # the scene of SUMO's last step
+        # cos, sin of its vehicles' headings (held until the next SUMO step)
+        self._held_dir: tuple[np.ndarray, np.ndarray] | None = None
         self._replay: ReplayAgents | None = None
         self._replay_origin_s = 0.0  # SUMO time of the run's t = 0, known before it
 
@@ -151,6 +160,7 @@ class SumoWorld:
             libsumo.vehicle.setLaneChangeMode(EGO_ID, 0)
         else:
             libsumo.vehicle.setMaxSpeed(EGO_ID, float(sc.ego.target_speed_mps))
+        libsumo.vehicle.subscribe(EGO_ID, list(_EGO_VARS))
         libsumo.vehicle.subscribeContext(
             EGO_ID, tc.CMD_GET_VEHICLE_VARIABLE, self._radius_m,
             [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_LENGTH, tc.VAR_WIDTH,
@@ -164,6 +174,7 @@ class SumoWorld:
         self._stalled = self._stalled_vehicles()
         self._k = 0
         self._held = self._scene(hits)
+        self._held_dir = None
         return self._held
 
     def step(self, ego_pose: EgoPose | None) -> Scene:
@@ -175,10 +186,13 @@ class SumoWorld:
             if ego_pose is not None:
                 self._move_ego(ego_pose)
             self._held = self._scene(self._advance())
+            self._held_dir = None
             return self._held
         tau = self.rate.since_world_step_s(self._k)
-        return Scene(t_s=held.t_s + tau, traffic=extrapolate_traffic(held.traffic, tau),
-                     ego=held.ego)
+        if self._held_dir is None:
+            self._held_dir = headings(held.traffic)
+        return Scene(t_s=held.t_s + tau,
+                     traffic=extrapolate_traffic(held.traffic, tau, self._held_dir), ego=held.ego)
 
     def close(self) -> WorldSummary:
         if self._ls is not None:
@@ -290,15 +304,16 @@ class SumoWorld:
                            float(self.vehicle.width_m), ego.road_id, ego.lane_index)
 
     def _ego(self) -> WorldEgo:
-        v = self._ls.vehicle
-        x, y = v.getPosition(EGO_ID)
+        """The ego from its variable subscription (:data:`_EGO_VARS`, the values of the
+        eight getters, read in one call)."""
+        r = self._ls.vehicle.getSubscriptionResults(EGO_ID)
+        x, y = r[_POSITION]
         return WorldEgo(front_x_m=float(x), front_y_m=float(y),
-                        heading_rad=nav_deg_to_math_rad_scalar(float(v.getAngle(EGO_ID))),
-                        speed_mps=float(v.getSpeed(EGO_ID)),
-                        accel_mps2=float(v.getAcceleration(EGO_ID)),
-                        lane_index=int(v.getLaneIndex(EGO_ID)), road_id=str(v.getRoadID(EGO_ID)),
-                        lane_heading_rad=self._lane_heading(str(v.getLaneID(EGO_ID)),
-                                                            float(v.getLanePosition(EGO_ID))))
+                        heading_rad=nav_deg_to_math_rad_scalar(float(r[_ANGLE])),
+                        speed_mps=float(r[_SPEED]), accel_mps2=float(r[_ACCELERATION]),
+                        lane_index=int(r[_LANE_INDEX]), road_id=str(r[_ROAD_ID]),
+                        lane_heading_rad=self._lane_heading(str(r[_LANE_ID]),
+                                                            float(r[_LANE_POSITION])))
 
     def _lane_heading(self, lane_id: str, pos_m: float) -> float:
         """Heading [rad] of the segment of lane ``lane_id``'s polyline at position ``pos_m``
