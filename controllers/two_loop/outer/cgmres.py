@@ -73,12 +73,12 @@ from controllers.two_loop.outer.ocp_layout import (
 from controllers.two_loop.outer.params import CgmresParams
 from controllers.two_loop.outer.protocol import OuterPlan
 from controllers.two_loop.outer.slots import ObstacleSlots
-from controllers.two_loop.outer.target_ramp import TargetSpeedRamp
+from controllers.two_loop.outer.target_ramp import CruiseSetPoint, TargetSpeedRamp
 
 __all__ = ["CgmresOuter", "cgmres_updates", "work_size"]
 
 
-class CgmresOuter:
+class CgmresOuter(CruiseSetPoint):
     """C/GMRES :class:`controllers.two_loop.outer.protocol.OuterPlanner` (module docstring).
 
     path: the reference path; params: the OCP and the solver's settings; n_slots: the
@@ -173,13 +173,6 @@ class CgmresOuter:
         self.fallback_count = 0
         self.guard_total = 0
         self.subupdate_times_s.clear()
-
-    def set_cruise_speed(self, cruise_speed_mps: float) -> None:
-        """The run's cruise set-point [m/s]: the target ramp decelerates toward a
-        set-point at or above it at ``set_speed_decel_mps2``, toward a lower one (the
-        behaviour lowered it to follow) at ``target_decel_mps2`` (:class:`TargetSpeedRamp`).
-        Until it is given (after ``reset``), ``target_decel_mps2`` everywhere."""
-        self._ramp.cruise_speed_mps = float(cruise_speed_mps)
 
     def restart(self, x0: np.ndarray, target_speed_mps: float,
                 target_accel_mps2: float = 0.0) -> None:

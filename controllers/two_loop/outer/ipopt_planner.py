@@ -59,7 +59,7 @@ from controllers.two_loop.outer.ipopt_nlp import (
 from controllers.two_loop.outer.ipopt_warmstart import Solution, shift_solution, with_obstacles
 from controllers.two_loop.outer.params import FORMULATIONS, IpoptParams
 from controllers.two_loop.outer.protocol import OuterPlan
-from controllers.two_loop.outer.target_ramp import TargetSpeedRamp
+from controllers.two_loop.outer.target_ramp import CruiseSetPoint, TargetSpeedRamp
 
 __all__ = ["FORMULATIONS", "IpoptOuter", "UpdateStats"]
 
@@ -79,7 +79,7 @@ class UpdateStats:
     ipopt_cpu_s: float  # this thread's CPU time in the Ipopt call (robust to machine load)
 
 
-class IpoptOuter:
+class IpoptOuter(CruiseSetPoint):
     """OuterPlanner: the J3 SPMM OCP solved by Ipopt every update (see the module doc).
 
     path: a ``controllers.path.frenet.FrenetPath`` (or anything with length_m, gamma, kappa).
@@ -193,13 +193,6 @@ class IpoptOuter:
         self.fallback_count = 0
         self.update_count = 0
         self.history.clear()
-
-    def set_cruise_speed(self, cruise_speed_mps: float) -> None:
-        """The run's cruise set-point [m/s]: the target ramp decelerates toward a
-        set-point at or above it at ``set_speed_decel_mps2``, toward a lower one (the
-        behaviour lowered it to follow) at ``target_decel_mps2`` (:class:`TargetSpeedRamp`).
-        Until it is given (after ``reset``), ``target_decel_mps2`` everywhere."""
-        self._ramp.cruise_speed_mps = float(cruise_speed_mps)
 
     def restart(self, x0: np.ndarray, target_speed_mps: float,
                 target_accel_mps2: float = 0.0) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["TargetSpeedRamp"]
+__all__ = ["CruiseSetPoint", "TargetSpeedRamp"]
 
 
 class TargetSpeedRamp:
@@ -74,3 +74,17 @@ class TargetSpeedRamp:
         self.ramp_accel_mps2 = a
         self.speed_mps = max(self.speed_mps + a * dt_s, 0.0)
         return self.speed_mps
+
+
+class CruiseSetPoint:
+    """What an outer planner owning a :class:`TargetSpeedRamp` (``_ramp``) shares: the
+    run's cruise set-point."""
+
+    _ramp: TargetSpeedRamp
+
+    def set_cruise_speed(self, cruise_speed_mps: float) -> None:
+        """The run's cruise set-point [m/s]: the target ramp decelerates toward a
+        set-point at or above it at ``set_speed_decel_mps2``, toward a lower one (the
+        behaviour lowered it to follow) at ``target_decel_mps2`` (:class:`TargetSpeedRamp`).
+        Until it is given (after ``reset``), ``target_decel_mps2`` everywhere."""
+        self._ramp.cruise_speed_mps = float(cruise_speed_mps)
