@@ -329,12 +329,36 @@ def test_verdict_series_are_logged(collision_run: tuple[Path, Path]) -> None:
     np.testing.assert_allclose([ttc[k] for k in range(300)], expected, rtol=1e-6)
 
 
-def test_blueprint_builds() -> None:
-    bp = default_blueprint(ViewGeometry(ego_start_xy=(0.0, 0.0), ego_heading_rad=np.pi,
-                                        road_bounds=(0.0, 100.0, -5.0, 5.0),
-                                        diagnostics=("preview_err_t_m",)))
-    assert bp is not None
-    assert default_blueprint() is not None
+def _views(container: object, out: list[tuple[str, str]]) -> list[tuple[str, str]]:
+    """(name, origin) of every view below a blueprint container."""
+    origin = getattr(container, "origin", None)
+    kids = getattr(container, "contents", None)
+    if not isinstance(origin, str) and isinstance(kids, (list, tuple)):
+        for kid in kids:
+            _views(kid, out)
+    else:
+        out.append((str(getattr(container, "name", "")), str(origin)))
+    return out
+
+
+def test_the_blueprint_has_the_views_a_run_needs() -> None:
+    """Both bird's-eye views of /world, the verdict's safety series, and a view per
+    controller diagnostic exactly when the run has it."""
+    geometry = {"ego_start_xy": (0.0, 0.0), "ego_heading_rad": np.pi,
+                "road_bounds": (0.0, 100.0, -5.0, 5.0)}
+    with_diag = _views(default_blueprint(ViewGeometry(**geometry,  # type: ignore[arg-type]
+                                                      diagnostics=("preview_err_t_m",))
+                                         ).root_container, [])
+    without = _views(default_blueprint(ViewGeometry(**geometry)  # type: ignore[arg-type]
+                                       ).root_container, [])
+    origins = {o for _, o in with_diag}
+    assert [n for n, o in with_diag if o == "/world"] == ["Follow ego", "Whole road"]
+    assert {"/safety/ttc_s", "/safety/min_gap_m", "/safety/collision",
+            "/safety/offroad_excess_m", "/comfort/jerk_mps3"} <= origins
+    assert "/controller/preview_err_t_m" in origins
+    assert "/controller/preview_err_t_m" not in {o for _, o in without}
+    assert set(without) < set(with_diag)
+    assert _views(default_blueprint().root_container, [])  # defaults build too
 
 
 def test_write_cost_1500_steps_30_neighbours(tmp_path: Path) -> None:
