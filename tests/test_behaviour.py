@@ -20,6 +20,7 @@ from controllers.behaviour.types import (
     SIDE_RIGHT,
     Decision,
     EgoFrenet,
+    LaneCheck,
     LaneContext,
     LaneSlot,
     ObstaclePolicy,
@@ -89,7 +90,7 @@ def test_a_stalled_car_ahead_is_passed_on_the_left(path: FrenetPath) -> None:
     d = at(behaviour(path), 100.0, 0.0, traffic([("stalled0", 200.0, 0.0, 0.0)]), THREE_LANES)
     assert d.side == SIDE_LEFT and d.reason_code is Reason.PASS
     assert d.reason.startswith("pass stalled0 on the left")
-    assert "left lane free" in d.reason
+    assert d.lane_check(1) is LaneCheck.FREE
     assert d.lateral_reference_m == pytest.approx(W)
     assert d.obstacles.count == 1
     assert d.obstacles.y_m[0] == pytest.approx(-ObstaclePolicy().offset_m)  # shifted right
@@ -121,7 +122,8 @@ def test_no_free_side_follows_the_stalled_car(path: FrenetPath) -> None:
                   ("carR", 98.0, -W, 25.0)])
     d = at(behaviour(path), 100.0, 0.0, nb, THREE_LANES)
     assert d.side == SIDE_FOLLOW and d.reason_code is Reason.FOLLOW
-    assert "left gap too short" in d.reason and "right gap too short" in d.reason
+    left, right = d.lane_check(1), d.lane_check(-1)
+    assert left is not None and left.gap_too_short and right is not None and right.gap_too_short
     assert d.target_speed_mps < 25.0
     blocker = list(d.obstacle_ids).index("stalled0")
     # A wall across the carriageway: no way round and no sideways push.
@@ -139,8 +141,8 @@ def test_a_fast_car_closing_from_behind_in_the_target_lane_blocks_the_change(
     assert ok.side == SIDE_LEFT and not ok.evasive
     no = at(behaviour(path), 100.0, 0.0,
             traffic([("stalled0", 270.0, 0.0, 0.0), ("fast", 70.0, W, 35.0)]), THREE_LANES)
-    assert no.side == SIDE_RIGHT and "left gap too short" in no.reason
-    assert "closing from behind" in no.reason
+    assert no.side == SIDE_RIGHT and no.lane_check(1) is LaneCheck.CLOSING_FROM_BEHIND
+    assert no.lane_check(-1) is LaneCheck.FREE
 
 
 def test_an_evasive_change_accepts_a_follower_braking_harder(path: FrenetPath) -> None:
@@ -242,9 +244,10 @@ def test_shoulder_only_when_allowed(path: FrenetPath) -> None:
              2: LaneSlot(2, W, True, False)}
     nb = traffic([("stalled0", 200.0, 0.0, 0.0), ("carL", 101.0, W, 25.0)])
     refused = at(behaviour(path, shoulder=False), 100.0, 0.0, nb, lanes)
-    assert refused.side == SIDE_FOLLOW and "shoulder (not allowed)" in refused.reason
+    assert refused.side == SIDE_FOLLOW
+    assert refused.lane_check(-1) is LaneCheck.SHOULDER_NOT_ALLOWED
     allowed = at(behaviour(path, shoulder=True), 100.0, 0.0, nb, lanes)
-    assert allowed.side == SIDE_RIGHT and "shoulder free" in allowed.reason
+    assert allowed.side == SIDE_RIGHT and allowed.lane_check(-1) is LaneCheck.FREE
     # The lateral reference is the shoulder's centre: half of 3.5 + 3.0 to the right.
     assert allowed.lateral_reference_m == pytest.approx(-W)
 
@@ -253,10 +256,11 @@ def test_missing_barred_and_ending_lanes_are_not_used(path: FrenetPath) -> None:
     lanes = {0: LaneSlot(0, W, False, False), 1: LaneSlot(1, W, True, False)}
     d = at(behaviour(path), 100.0, 0.0, traffic([("stalled0", 200.0, 0.0, 0.0)]), lanes)
     assert d.side == SIDE_FOLLOW
-    assert "no left lane" in d.reason and "bars passenger" in d.reason
+    assert d.lane_check(1) is LaneCheck.NO_LANE
+    assert d.lane_check(-1) is LaneCheck.BARS_PASSENGER
     ending = {1: LaneSlot(1, W, True, False), 2: LaneSlot(2, W, True, False, continues_m=80.0)}
     e = at(behaviour(path), 100.0, 0.0, traffic([("stalled0", 200.0, 0.0, 0.0)]), ending)
-    assert e.side == SIDE_FOLLOW and "left lane ends in 80 m" in e.reason
+    assert e.side == SIDE_FOLLOW and e.lane_check(1) is LaneCheck.ENDS
 
 
 def test_a_change_aborts_before_the_commit_point_and_not_after(path: FrenetPath) -> None:
@@ -368,7 +372,7 @@ def test_a_lane_change_holds_for_hold_s(path: FrenetPath) -> None:
     at(b, 150.0, W, nb, THREE_LANES, t=12.0)  # completes at t = 12
     early = at(b, 222.0, W, nb, THREE_LANES, t=13.0)
     assert early.lateral_reference_m == pytest.approx(W) and early.reason_code is Reason.KEEP
-    assert "holding" in early.reason
+    assert LaneCheck.HOLDING in {check for _, check in early.lane_checks}
     later = at(b, 240.0, W, nb, THREE_LANES, t=15.5)
     assert later.lateral_reference_m == 0.0
 

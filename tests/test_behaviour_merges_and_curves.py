@@ -18,6 +18,7 @@ from controllers.behaviour.types import (
     SIDE_LEFT,
     SIDE_RIGHT,
     EgoFrenet,
+    LaneCheck,
     LaneContext,
     LaneSlot,
     Reason,
@@ -62,7 +63,7 @@ def test_a_return_waits_on_a_curve_that_leaves_no_room() -> None:
     lanes = {i: LaneSlot(i, W, True, False) for i in range(3)}
     d = at(b, 400.0, W, traffic([]), lanes, ref=1, v=33.0, set_speed=33.0)
     assert d.lateral_reference_m == pytest.approx(W)  # stays in the left lane
-    assert d.reason_code is Reason.KEEP and "curve" in d.reason
+    assert d.reason_code is Reason.KEEP and d.lane_check(-1) is LaneCheck.CURVE
     # the same on a straight road returns
     straight = behaviour(FrenetPath.from_polyline(np.array([[0.0, 0.0], [3000.0, 0.0]])))
     d2 = at(straight, 400.0, W, traffic([]), lanes, ref=1, v=33.0, set_speed=33.0)
@@ -188,7 +189,7 @@ def test_a_car_on_an_on_ramp_blocks_a_change_into_the_lane_it_enters(path: Frene
                   speed_mps=nb.speed_mps, length_m=nb.length_m, width_m=nb.width_m,
                   lane_index=nb.lane_index, road_id=("e0", "ramp"), stalled=nb.stalled)
     d = behaviour(path).decide(EgoFrenet(100.0, 0.0, 100.0, 0.0, 25.0, 100.0), nb, ctx, 25.0)
-    assert d.side != SIDE_RIGHT and "ramp0" in d.reason
+    assert d.side != SIDE_RIGHT and d.lane_check(-1) is LaneCheck.MERGE_CONFLICT
     # without the ramp car the stalled car is passed on the right
     alone = traffic(rows[:1], road="e0", lanes=[1])
     d2 = behaviour(path).decide(EgoFrenet(100.0, 0.0, 100.0, 0.0, 25.0, 100.0), alone, ctx,

@@ -60,6 +60,7 @@ from controllers.behaviour.tracking import AccelerationTracker
 from controllers.behaviour.types import (
     Decision,
     EgoFrenet,
+    LaneCheck,
     LaneContext,
     ObstaclePolicy,
     Reason,
@@ -139,11 +140,14 @@ class LaneBehaviour:
     _plan: _Plan | None = field(default=None, init=False)
     _tracker: AccelerationTracker = field(default_factory=AccelerationTracker, init=False)
     _accel: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), init=False)
+    # the lane changes this step weighed: (target lane relative to the ego's, check)
+    _checks: list[tuple[int, LaneCheck]] = field(default_factory=list, init=False)
 
     # ------------------------------------------------------------------ the step
     def decide(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext,
                set_speed_mps: float) -> Decision:
         scene = self._scene(ego, traffic, lanes)
+        self._checks = []
         self._accel = self._tracker.update(ego.t_s, traffic)
         plan = self._plan or _Plan(scene.ego_lane, scene.ego_lane, -math.inf)
         plan, code, reason, follow = self._update(scene, plan, set_speed_mps)
@@ -155,7 +159,8 @@ class LaneBehaviour:
                                   self.ego.length_m, self.ego.width_m, self.lane_width_m)
         return Decision(obstacles=obstacles, side=side, reason=reason, target_speed_mps=target,
                         lateral_reference_m=scene.offset_m(plan.lane),
-                        evasive=plan.changing and plan.evasive, reason_code=code)
+                        evasive=plan.changing and plan.evasive, reason_code=code,
+                        lane_checks=tuple(self._checks))
 
     def _scene(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext) -> LaneScene:
         fn = project_traffic(self.path, traffic, ego)
@@ -191,22 +196,28 @@ class LaneBehaviour:
         reasons = []
         for w in want:
             curve = self._curve_acc_mps2(sc, w.end_s_m)
+            side = w.target - sc.ego_lane
             if not w.urgent and lc.max_lat_acc_mps2 - curve < lc.change_lat_acc_mps2:
                 reasons.append(f"{w.why}: the curve takes {curve:.1f} m/s² lateral")
+                self._checks.append((side, LaneCheck.CURVE))
                 continue
             bound = lc.evasive_decel_mps2 if w.evasive else lc.safe_decel_mps2
-            ok, why = lane_change_safety(sc, w.target, w.end_s_m, lc, bound,
-                                         self.ego.allow_shoulder)
+            ok, why, check = lane_change_safety(sc, w.target, w.end_s_m, lc, bound,
+                                                self.ego.allow_shoulder)
             if not ok:
                 reasons.append(why)
+                self._checks.append((side, check))
                 continue
             conflict = self._merge_conflict(sc, w.target)
             if conflict:
                 reasons.append(conflict)
+                self._checks.append((side, LaneCheck.MERGE_CONFLICT))
                 continue
             if t - plan.since_s < lc.hold_s and not w.urgent:
                 reasons.append(f"{w.why}: holding the lane for {lc.hold_s:g} s")
+                self._checks.append((side, LaneCheck.HOLDING))
                 continue
+            self._checks.append((side, LaneCheck.FREE))
             new = _Plan(w.target, plan.lane, t, w.passing, w.evasive, w.end_s_m)
             tried = f" ({'; '.join(reasons)})" if reasons else ""
             return new, w.kind, f"{w.why}: {why}{tried}", False
@@ -233,8 +244,9 @@ class LaneBehaviour:
                 sc.ego.s_m + self._change_length_m(sc, plan.lane)
             end = max(end, sc.ego.s_m + lc.standstill_m)
             bound = lc.evasive_decel_mps2 if plan.evasive else lc.abort_decel_mps2
-            ok, why = lane_change_safety(sc, plan.lane, end, lc, bound,
-                                         self.ego.allow_shoulder)
+            ok, why, check = lane_change_safety(sc, plan.lane, end, lc, bound,
+                                                self.ego.allow_shoulder)
+            self._checks.append((plan.lane - sc.ego_lane, check))
             if not ok and not self._evasion_beats_abort(sc, plan):
                 return (_Plan(plan.origin, plan.origin, t, plan.passing), Reason.ABORT,
                         f"abort {side}: {why}", False)

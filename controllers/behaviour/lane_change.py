@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from controllers.behaviour.perception import LaneScene, Neighbour
-from controllers.behaviour.types import require_numbers
+from controllers.behaviour.types import LaneCheck, require_numbers
 
 
 @dataclass(frozen=True)
@@ -129,56 +129,60 @@ def decel_needed_mps2(closing_mps: float, gap_m: float, standstill_m: float) -> 
 
 
 def lane_change_safety(scene: LaneScene, target: int, end_s_m: float, p: LaneChangeParams,
-                       decel_bound_mps2: float, allow_shoulder: bool) -> tuple[bool, str]:
-    """(safe, why) for moving into relative lane ``target`` for a manoeuvre that ends at
-    path position ``end_s_m`` (module docstring); ``decel_bound_mps2`` is b_safe, or the
-    abort bound when re-checking a change under way."""
+                       decel_bound_mps2: float, allow_shoulder: bool
+                       ) -> tuple[bool, str, LaneCheck]:
+    """(safe, why, check) for moving into relative lane ``target`` for a manoeuvre that
+    ends at path position ``end_s_m`` (module docstring); ``decel_bound_mps2`` is b_safe,
+    or the abort bound when re-checking a change under way."""
     name = _side_name(target - scene.ego_lane)
     slot = scene.slot(target)
     if slot is None:
-        return False, f"no {name} lane"
+        return False, f"no {name} lane", LaneCheck.NO_LANE
     if slot.is_shoulder and not allow_shoulder:
-        return False, f"{name} is a shoulder (not allowed)"
+        return False, f"{name} is a shoulder (not allowed)", LaneCheck.SHOULDER_NOT_ALLOWED
     if not slot.allows_passenger and not slot.is_shoulder:
-        return False, f"{name} lane bars passenger cars"
+        return False, f"{name} lane bars passenger cars", LaneCheck.BARS_PASSENGER
     kind = "shoulder" if slot.is_shoulder else "lane"
     need = end_s_m - scene.ego.s_m + p.lane_end_margin_m
     if slot.continues_m < need:
-        return False, f"{name} {kind} ends in {slot.continues_m:.0f} m"
+        return False, f"{name} {kind} ends in {slot.continues_m:.0f} m", LaneCheck.ENDS
     v = scene.ego.speed_mps
     in_lane = scene.rel_lane == target
     stationary = in_lane & (np.abs(scene.fn.v_s_mps) < 0.5)
     reach = 0.5 * (scene.fn.length_m + scene.ego_length_m) + p.standstill_m
     ds = scene.ds_m
     if np.any(stationary & (ds > -reach) & (ds < end_s_m - scene.ego.s_m + reach)):
-        return False, f"{name} {kind} blocked by a stopped vehicle"
+        return (False, f"{name} {kind} blocked by a stopped vehicle",
+                LaneCheck.STOPPED_VEHICLE)
     lead = scene.lead(target)
     if lead is not None:
-        why = _front_problem(lead, v, p, decel_bound_mps2)
-        if why:
-            return False, f"{name} gap too short ({why})"
+        why, check = _front_problem(lead, v, p, decel_bound_mps2)
+        if check is not None:
+            return False, f"{name} gap too short ({why})", check
     rear = scene.follower(target)
     if rear is not None:
-        why = _rear_problem(rear, v, p, decel_bound_mps2)
-        if why:
-            return False, f"{name} gap too short ({why})"
-    return True, f"{name} {kind} free"
+        why, check = _rear_problem(rear, v, p, decel_bound_mps2)
+        if check is not None:
+            return False, f"{name} gap too short ({why})", check
+    return True, f"{name} {kind} free", LaneCheck.FREE
 
 
-def _front_problem(lead: Neighbour, v: float, p: LaneChangeParams, bound: float) -> str:
+def _front_problem(lead: Neighbour, v: float, p: LaneChangeParams, bound: float
+                   ) -> tuple[str, LaneCheck | None]:
     if lead.gap_m < p.standstill_m + p.front_time_gap_s * v:
-        return f"{lead.gap_m:.0f} m to the car ahead"
+        return f"{lead.gap_m:.0f} m to the car ahead", LaneCheck.FRONT_GAP
     if decel_needed_mps2(v - lead.speed_mps, lead.gap_m, p.standstill_m) > bound:
-        return "closing on the car ahead"
-    return ""
+        return "closing on the car ahead", LaneCheck.CLOSING_AHEAD
+    return "", None
 
 
-def _rear_problem(rear: Neighbour, v: float, p: LaneChangeParams, bound: float) -> str:
+def _rear_problem(rear: Neighbour, v: float, p: LaneChangeParams, bound: float
+                  ) -> tuple[str, LaneCheck | None]:
     if rear.gap_m < p.standstill_m + p.rear_time_gap_s * max(rear.speed_mps, 0.0):
-        return f"{rear.gap_m:.0f} m to the car behind"
+        return f"{rear.gap_m:.0f} m to the car behind", LaneCheck.REAR_GAP
     if decel_needed_mps2(rear.speed_mps - v, rear.gap_m, p.standstill_m) > bound:
-        return "a faster car closing from behind"
-    return ""
+        return "a faster car closing from behind", LaneCheck.CLOSING_FROM_BEHIND
+    return "", None
 
 
 def _side_name(step: int) -> str:

@@ -54,6 +54,41 @@ SIDE_RIGHT = Side.RIGHT
 SIDE_FOLLOW = Side.FOLLOW
 
 
+class LaneCheck(StrEnum):
+    """Why a wanted lane change was or was not taken, per target lane (the decision's
+    ``lane_checks``; its ``reason`` text says it with the vehicles and numbers).
+
+    FREE: the lane (or shoulder) is free; NO_LANE: there is none; SHOULDER_NOT_ALLOWED:
+    it is a shoulder and the scenario forbids it; BARS_PASSENGER: passenger cars may not
+    use it; ENDS: it ends before the change would; STOPPED_VEHICLE: a stopped vehicle
+    stands where the change would go; FRONT_GAP / REAR_GAP: the time gap to the vehicle
+    ahead / behind in it is too short; CLOSING_AHEAD / CLOSING_FROM_BEHIND: that vehicle
+    would need harder braking than the bound; CURVE: the curve leaves too little lateral
+    acceleration for a change that is not urgent; MERGE_CONFLICT: a vehicle merges into it;
+    HOLDING: the last change is too recent (the hold time).
+    """
+
+    FREE = "free"
+    NO_LANE = "no_lane"
+    SHOULDER_NOT_ALLOWED = "shoulder_not_allowed"
+    BARS_PASSENGER = "bars_passenger"
+    ENDS = "ends"
+    STOPPED_VEHICLE = "stopped_vehicle"
+    FRONT_GAP = "front_gap"
+    REAR_GAP = "rear_gap"
+    CLOSING_AHEAD = "closing_ahead"
+    CLOSING_FROM_BEHIND = "closing_from_behind"
+    CURVE = "curve"
+    MERGE_CONFLICT = "merge_conflict"
+    HOLDING = "holding"
+
+    @property
+    def gap_too_short(self) -> bool:
+        """A vehicle in the target lane is too close or closing too fast."""
+        return self in (LaneCheck.FRONT_GAP, LaneCheck.REAR_GAP, LaneCheck.CLOSING_AHEAD,
+                        LaneCheck.CLOSING_FROM_BEHIND)
+
+
 class Reason(StrEnum):
     """What kind of decision the behaviour took (the trace's ``reason_code``); the
     decision's ``reason`` text says it with the vehicles and numbers.
@@ -337,6 +372,8 @@ class Decision:
     lateral_reference_m: float = 0.0
     evasive: bool = False
     reason_code: Reason = Reason.NONE
+    # (relative target lane, check) of every lane change this decision weighed, in order
+    lane_checks: tuple[tuple[int, LaneCheck], ...] = ()
 
     def __post_init__(self) -> None:
         # Side(...) / Reason(...) raise ValueError for a value that is none of theirs
@@ -347,6 +384,12 @@ class Decision:
     def obstacle_ids(self) -> tuple[str, ...]:
         """The vehicle behind each ellipse (() when the obstacles carry no ids)."""
         return self.obstacles.vehicle_ids
+
+    def lane_check(self, rel_lane: int) -> LaneCheck | None:
+        """The last check of a change into relative lane ``rel_lane`` (+1 left, -1 right)
+        this decision weighed; None when it weighed none."""
+        found = [check for lane, check in self.lane_checks if lane == rel_lane]
+        return found[-1] if found else None
 
     @property
     def pass_side(self) -> int:
