@@ -48,30 +48,37 @@ WARMUP_NOTE = ("starting {n} worker(s): importing modules and loading numba kern
 def build_jobs(scenarios: list[Any], out: Path, catalog_name: str, no_log: bool,
                plugins: Plugins, timeout_s: float | None = None) -> list[Any]:
     """One job per scenario: its budget (``--timeout``, else the catalog's, else the
-    default from its duration), its content hash (each network file read once) and the
-    hashes of the code and of a plug-in controller (:mod:`suite.run.code_identity`)."""
+    default from its duration), its content hash (each network and tracks file read once)
+    and the hashes of the code and of a plug-in controller (:mod:`suite.run.code_identity`)."""
     from suite.exec.budget import run_budget_s
     from suite.exec.executors import RunJob
     from suite.run.code_identity import controller_sha256, hwyeval_code_sha256
-    from suite.run.info import file_sha256, scenario_content_sha256
+    from suite.run.info import file_sha256, scenario_content_sha256, scenario_tracks_path
     from suite.run.options import RunOptions
 
-    net_hashes: dict[Path, str] = {}
+    file_hashes: dict[Path, str] = {}
+
+    def digest(path: Path, what: str, scenario: str) -> str:
+        if path not in file_hashes:
+            try:
+                file_hashes[path] = file_sha256(path)
+            except OSError as exc:
+                raise UsageError(f"{path}: cannot read the {what} of scenario {scenario!r} "
+                                 f"({exc})") from exc
+        return file_hashes[path]
+
     code = hwyeval_code_sha256()
     controllers = {name: controller_sha256(name)
                    for name in sorted({sc.controller.name for sc in scenarios})}
     jobs = []
     for sc in scenarios:
-        if sc.net_path not in net_hashes:
-            try:
-                net_hashes[sc.net_path] = file_sha256(sc.net_path)
-            except OSError as exc:
-                raise UsageError(f"{sc.net_path}: cannot read the network of scenario "
-                                 f"{sc.name!r} ({exc})") from exc
+        net = digest(sc.net_path, "network", sc.name)
+        tracks = scenario_tracks_path(sc)
+        content = scenario_content_sha256(
+            sc, net, digest(tracks, "tracks file", sc.name) if tracks is not None else None)
         budget = run_budget_s(sc.duration_s, sc.timeout_s, timeout_s)
         options = RunOptions(write_rrd=not no_log, catalog_name=catalog_name, timeout_s=budget,
-                             content_sha256=scenario_content_sha256(sc, net_hashes[sc.net_path]),
-                             code_sha256=code,
+                             content_sha256=content, code_sha256=code,
                              controller_sha256=controllers[sc.controller.name])
         jobs.append(RunJob(sc, out.resolve(), options, budget, plugins.modules))
     return jobs

@@ -32,19 +32,27 @@ def file_sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def scenario_content_sha256(scenario: Scenario, net_sha256: str | None = None) -> str:
+def scenario_tracks_path(scenario: Scenario) -> Path | None:
+    """The resolved tracks file a scenario replays (None without ``replay``)."""
+    replay = scenario.replay
+    return replay.tracks_path if replay is not None else None
+
+
+def scenario_content_sha256(scenario: Scenario, net_sha256: str | None = None,
+                            tracks_sha256: str | None = None) -> str:
     """SHA-256 (hex) of everything a run of ``scenario`` depends on: every field of the
     resolved scenario but its paths and wall-clock budget (:data:`UNHASHED_FIELDS`), and
     the bytes of its network file (``net_sha256`` when already known) and, with a
-    ``replay``, of its tracks file. Two scenarios with the same hash simulate the same
-    thing with the same hwyeval version."""
+    ``replay``, of its tracks file (``tracks_sha256`` when already known). Two scenarios
+    with the same hash simulate the same thing with the same hwyeval version."""
     spec = {k: v for k, v in scenario.as_dict().items() if k not in UNHASHED_FIELDS}
     net = net_sha256 if net_sha256 is not None else file_sha256(scenario.net_path)
     content: dict[str, Any] = {"scenario": spec, "net_sha256": net}
-    replay = scenario.replay
-    if replay is not None and replay.tracks_path is not None:
+    tracks = scenario_tracks_path(scenario)
+    if tracks is not None:
         # the recording is part of the scenario: an edited tracks file is another one
-        content["tracks_sha256"] = file_sha256(replay.tracks_path)
+        content["tracks_sha256"] = tracks_sha256 if tracks_sha256 is not None \
+            else file_sha256(tracks)
     text = json.dumps(content, sort_keys=True, separators=(",", ":"), allow_nan=True,
                       default=str)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
