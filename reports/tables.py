@@ -214,6 +214,14 @@ def read_entry(run_dir: Path, parts: Parts = VERDICTS_ONLY) -> RunEntry:
     return RunEntry(run_dir, info.scenario, info.controller, family, status, error, record)
 
 
+def find_entry(runs: Sequence[RunEntry], scenario: str, controller: str) -> RunEntry | None:
+    """The run of ``scenario`` with ``controller`` among ``runs`` (None when absent)."""
+    for r in runs:
+        if r.scenario == scenario and r.controller == controller:
+            return r
+    return None
+
+
 def collect_runs(out_dir: str | Path, parts: Parts = VERDICTS_ONLY) -> list[RunEntry]:
     """Every run directory under ``out_dir`` (sorted by name), with ``parts`` loaded."""
     return [read_entry(run_dir, parts) for run_dir in iter_run_dirs(out_dir)]

@@ -21,7 +21,7 @@ from reports.charts import Line, Series, fmt, line_chart
 from reports.compare.findings import CompareRow
 from reports.record import RecordError, RunRecord, load_run
 from reports.record.columns import FloatColumn
-from reports.tables import RunEntry
+from reports.tables import RunEntry, find_entry
 
 __all__ = ["MAX_OVERLAYS", "METRIC_SERIES", "MetricSeries", "overlays_html"]
 
@@ -91,10 +91,8 @@ METRIC_SERIES: dict[str, MetricSeries] = {
 
 
 def _run_dir(runs: Sequence[RunEntry], row: CompareRow) -> Path | None:
-    for r in runs:
-        if r.scenario == row.scenario and r.controller == row.controller:
-            return r.run_dir
-    return None
+    entry = find_entry(runs, row.scenario, row.controller)
+    return entry.run_dir if entry is not None else None
 
 
 def _load(run_dir: Path | None) -> RunRecord | None:

@@ -22,7 +22,7 @@ from reports.compare.findings import GATING_CATEGORIES, GOOD_KINDS, CompareRow
 from reports.compare.overlay import overlays_html
 from reports.manifest import Manifest
 from reports.record.codec import to_plain, write_text_atomic
-from reports.tables import RunEntry
+from reports.tables import RunEntry, find_entry
 
 if TYPE_CHECKING:
     from reports.compare import CompareResult
@@ -219,12 +219,12 @@ def run_links(result: CompareResult, page: Path, base: Sequence[RunEntry],
     import os
 
     def href(side_dir: Path, runs: Sequence[RunEntry], scenario: str, controller: str) -> str:
-        for r in runs:
-            if r.scenario == scenario and r.controller == controller:
-                target = side_dir / "report-runs" / f"{r.run_id}.html"
-                if target.is_file():
-                    return os.path.relpath(target.absolute(), page.parent.absolute())
-        return ""
+        r = find_entry(runs, scenario, controller)
+        if r is None:
+            return ""
+        target = side_dir / "report-runs" / f"{r.run_id}.html"
+        return os.path.relpath(target.absolute(), page.parent.absolute()) \
+            if target.is_file() else ""
 
     return {row.key: (href(result.base_dir, base, row.scenario, row.controller),
                       href(result.new_dir, new, row.scenario, row.controller))
