@@ -3,8 +3,8 @@
 The road runs along +X: a shoulder (lane 0) and three driving lanes (1..3), 3.5 m
 wide. The ego starts in lane 1 at 25 m/s, changes to lane 2 to pass a car stalled in
 lane 1 at x = 200 m and returns; ``n_traffic`` faster vehicles drive ahead in lanes 2
-and 3. Each record is judged by :func:`reports.metrics.evaluate` and written with
-:func:`reports.record.write_run`, as the runner does.
+and 3. The records are assembled, judged and written by :mod:`synthetic_runs`'s builders (the
+one set the tests share), as the runner does; this module only draws the scene.
 """
 
 from __future__ import annotations
@@ -14,8 +14,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import synthetic_runs
+from synthetic_runs import base_info, judge, write_judged, write_record
 
-from reports.metrics import evaluate
 from reports.record import (
     ControllerArrays,
     EgoBox,
@@ -28,7 +29,6 @@ from reports.record import (
     StalledVehicle,
     SumoCollision,
     Trace,
-    write_run,
 )
 
 LANE_W = 3.5
@@ -184,14 +184,14 @@ def _road(x_end: float) -> RoadRecord:
 
 def info(scenario: str, seed: int, catalog: str, steps: int, dt: float,
          criteria: Mapping[str, Any] | None = None) -> RunInfo:
-    return RunInfo(scenario=scenario, family="stalled", controller="mpc_spmm",
-                   catalog=f"catalogs/{catalog}.toml", catalog_name=catalog, seed=seed,
-                   net="sumo_nets/straight3.net.xml", net_name="straight3",
-                   duration_s=steps * dt, step_s=dt, target_speed_mps=EGO_SPEED,
-                   allow_shoulder=False, ego=EGO,
-                   controller_options={"horizon": N_PLAN},
-                   controller_params={"horizon": N_PLAN, "dt_plan_s": 0.2, "q_y": 1.0},
-                   criteria=dict(criteria or {}))
+    """:func:`synthetic_runs.base_info` with this scene's catalog, net, ego and options."""
+    return base_info(scenario, controller="mpc_spmm", family="stalled",
+                     catalog=f"catalogs/{catalog}.toml", catalog_name=catalog, seed=seed,
+                     net="sumo_nets/straight3.net.xml", net_name="straight3",
+                     duration_s=steps * dt, step_s=dt, target_speed_mps=EGO_SPEED, ego=EGO,
+                     controller_options={"horizon": N_PLAN},
+                     controller_params={"horizon": N_PLAN, "dt_plan_s": 0.2, "q_y": 1.0},
+                     criteria=dict(criteria or {}))
 
 
 def make_record(*, scenario: str = "stalled_pass", seed: int = 1, catalog: str = "smoke",
@@ -208,30 +208,28 @@ def make_record(*, scenario: str = "stalled_pass", seed: int = 1, catalog: str =
                           type="collision"),) if collision else ()
     outcome = RunOutcome(wall_s=3.2, sim_time_s=float(tr.t_s[-1]), steps=steps,
                          stalled=(stalled,), sumo_collisions=hits)
-    record = RunRecord(info=info(scenario, seed, catalog, steps, dt, criteria), outcome=outcome,
-                       road=_road(float(x[-1])), trace=tr,
-                       neighbours=_neighbours(tr.t_s, x, y, n_traffic, neighbour_radius_m),
-                       arrays=_arrays(tr.t_s, ahead))
-    return evaluate(record).apply(record)
+    record = synthetic_runs.make_record(
+        tr, info=info(scenario, seed, catalog, steps, dt, criteria), outcome=outcome,
+        road=_road(float(x[-1])),
+        neighbours=_neighbours(tr.t_s, x, y, n_traffic, neighbour_radius_m),
+        arrays=_arrays(tr.t_s, ahead))
+    return judge(record)
 
 
 def make_run_dir(root: Path, *, scenario: str = "stalled_pass", **kw: Any) -> Path:
     """Write a judged synthetic run directory ``root/<scenario>`` and return it."""
     run_dir = Path(root) / scenario
-    write_run(make_record(scenario=scenario, **kw), run_dir)
+    write_record(make_record(scenario=scenario, **kw), run_dir)
     return run_dir
 
 
 def make_error_dir(root: Path, scenario: str = "boom", error: str = "Traceback...\n"
                    "RuntimeError: SUMO died") -> Path:
     """A run that crashed before its first step, judged and written as the runner does."""
-    record = RunRecord(info=info(scenario, 3, "smoke", 0, 0.1),
-                       outcome=RunOutcome(end="error", error=error), road=RoadRecord(),
-                       trace=Trace.empty(), neighbours=NeighbourColumns.allocate(0),
-                       arrays=ControllerArrays())
-    run_dir = Path(root) / scenario
-    write_run(evaluate(record).apply(record), run_dir)
-    return run_dir
+    record = synthetic_runs.make_record(
+        None, info=info(scenario, 3, "smoke", 0, 0.1),
+        outcome=RunOutcome(end="error", error=error), road=RoadRecord())
+    return write_judged(record, Path(root) / scenario)
 
 
 # --------------------------------------------------------------------------- reading back

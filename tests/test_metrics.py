@@ -18,7 +18,7 @@ from reports.metrics.comfort import sg_window
 from reports.metrics.context import build_context
 from reports.metrics.drivable import OFFROAD_TOLERANCE_M
 from reports.metrics.ttc import swept_box_ttc
-from reports.record import Failure, RunOutcome, RunRecord, SeriesColumns, Trace, load_run
+from reports.record import Failure, RunOutcome, RunRecord, Trace, load_run
 from reports.record.codec import to_plain
 
 
@@ -480,7 +480,6 @@ def test_worst_step_points_at_the_extreme_of_its_series() -> None:
 
 def test_series_have_one_row_per_trace_row() -> None:
     for record, ev in _worst_case_records():
-        assert isinstance(ev.series, SeriesColumns)
         for name, values in ev.series.columns():
             assert values.shape == (len(record.trace),), name
     # the copy the runner stores carries this verdict and these series

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 import sumo_nets
-from reports.record import load_run
+from reports.record import RunRecord, load_run
 from suite.road.lane_graph import RouteLaneGraph
 from suite.road.network import RoadNetwork
 
@@ -105,11 +105,8 @@ def test_free_drives_end_in_the_asked_lane(free_drives) -> None:
             assert tr.ego.lane_index[last] == index_on[ego_edge], (scen, ego_edge)
 
 
-def _edge_at(rec: object, row: int) -> str:
+def _edge_at(rec: RunRecord, row: int) -> str:
     """The route edge under the ego at a trace row (from the trace's route position)."""
-    from reports.record import RunRecord
-
-    assert isinstance(rec, RunRecord)
     net = RoadNetwork.load(rec.info.net)
     route = tuple(rec.road.route)
     lanes = [ln for ln in rec.road.lanes if not ln.internal]
