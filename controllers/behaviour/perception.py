@@ -22,13 +22,13 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import cached_property
 
 import numba
 import numpy as np
 import numpy.typing as npt
 
 from controllers.behaviour.types import EgoFrenet, LaneContext, LaneSlot, Traffic
+from controllers.cached import cached_property
 from controllers.path.frenet import FrenetPath
 
 FloatArray = npt.NDArray[np.float64]

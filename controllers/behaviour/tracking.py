@@ -11,15 +11,25 @@ quotient,
 so a speed that SUMO updates only every few control steps (the same speed twice, then a
 jump) averages to its true slope within about tau. A vehicle seen for the first time
 starts at a = 0; one not seen for ``forget_s`` is dropped.
+
+The state lives in arrays indexed by a slot per vehicle id; the filter runs in one
+compiled pass (:func:`_filter`, the expression above in the same order: the numbers of
+the per-vehicle definition bit for bit, tests/test_step_path_reuse.py). The id -> slot
+lookup is redone only when the world hands out a new id tuple (at its own steps; the
+extrapolated scenes in between share it).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
+import numpy.typing as npt
 
 from controllers.behaviour.types import FloatArray, Traffic, require_numbers
+
+IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True)
@@ -34,37 +44,87 @@ class TrackingParams:
         require_numbers(self, ("tau_s", "forget_s"), strict=True)
 
 
+@numba.njit(cache=True)
+def _filter(t_s: float, speeds: FloatArray, slots: IntArray, t_prev: FloatArray,
+            v_prev: FloatArray, a_prev: FloatArray, tau_s: float, forget_s: float,
+            out: FloatArray) -> None:
+    """The module docstring's filter for every vehicle j in order (slot ``slots[j]``;
+    ``t_prev`` NaN: never seen), updating the slots' state in place."""
+    for j in range(slots.shape[0]):
+        k = slots[j]
+        v = speeds[j]
+        a = 0.0
+        tp = t_prev[k]
+        if tp == tp:  # seen before
+            if 0.0 < t_s - tp <= forget_s:
+                dt = t_s - tp
+                a = a_prev[k] + ((v - v_prev[k]) / dt - a_prev[k]) * dt / (tau_s + dt)
+            elif t_s == tp:
+                a = a_prev[k]
+        t_prev[k] = t_s
+        v_prev[k] = v
+        a_prev[k] = a
+        out[j] = a
+
+
 @dataclass
 class AccelerationTracker:
     """Filtered acceleration [m/s²] along the heading of every vehicle by id."""
 
     params: TrackingParams = field(default_factory=TrackingParams)
-    _state: dict[str, tuple[float, float, float]] = field(default_factory=dict, init=False)
+    _slot: dict[str, int] = field(default_factory=dict, init=False)
+    _t: FloatArray = field(default_factory=lambda: np.full(64, np.nan), init=False)
+    _v: FloatArray = field(default_factory=lambda: np.zeros(64), init=False)
+    _a: FloatArray = field(default_factory=lambda: np.zeros(64), init=False)
+    _ids: tuple[str, ...] | None = field(default=None, init=False)
+    _slots: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64), init=False)
 
     def reset(self) -> None:
-        self._state.clear()
+        self._slot.clear()
+        self._t[:] = np.nan
+        self._ids = None
+
+    def _slots_of(self, ids: tuple[str, ...]) -> IntArray:
+        """Each id's state slot (new ids get a fresh one, the arrays grow as needed)."""
+        if ids is self._ids:
+            return self._slots
+        slot = self._slot
+        out = np.empty(len(ids), dtype=np.int64)
+        for j, vid in enumerate(ids):
+            k = slot.get(vid)
+            if k is None:
+                k = len(slot)
+                if k >= self._t.shape[0]:
+                    grow = self._t.shape[0]
+                    self._t = np.concatenate([self._t, np.full(grow, np.nan)])
+                    self._v = np.concatenate([self._v, np.zeros(grow)])
+                    self._a = np.concatenate([self._a, np.zeros(grow)])
+                slot[vid] = k
+            out[j] = k
+        self._ids, self._slots = ids, out
+        return out
 
     def update(self, t_s: float, traffic: Traffic) -> FloatArray:
         """Feed the speeds at time ``t_s`` [s]; returns the estimates, shape (n,) [m/s²]."""
-        tau, forget = self.params.tau_s, self.params.forget_s
-        out: list[float] = []
-        state = self._state
-        # Python floats from one tolist(): indexing the array per vehicle costs more
-        speeds = np.asarray(traffic.speed_mps, dtype=np.float64).tolist()
-        for vid, v in zip(traffic.ids, speeds, strict=True):
-            prev = state.get(vid)
-            a = 0.0
-            if prev is not None and 0.0 < t_s - prev[0] <= forget:
-                dt = t_s - prev[0]
-                a = prev[2] + ((v - prev[1]) / dt - prev[2]) * dt / (tau + dt)
-            elif prev is not None and t_s == prev[0]:
-                a = prev[2]
-            state[vid] = (t_s, v, a)
-            out.append(a)
-        if len(state) > 2 * traffic.count + 16:
-            for vid in [i for i, s in state.items() if t_s - s[0] > forget]:
-                del state[vid]
-        return np.array(out, dtype=np.float64)
+        slots = self._slots_of(traffic.ids)
+        out = np.empty(slots.shape[0], dtype=np.float64)
+        _filter(float(t_s), np.ascontiguousarray(traffic.speed_mps, dtype=np.float64), slots,
+                self._t, self._v, self._a, self.params.tau_s, self.params.forget_s, out)
+        if len(self._slot) > 2 * traffic.count + 16:
+            self._forget(float(t_s))
+        return out
+
+    def _forget(self, t_s: float) -> None:
+        """Drop the vehicles unseen for longer than ``forget_s`` (compacting the slots)."""
+        keep = [(vid, k) for vid, k in self._slot.items()
+                if not t_s - float(self._t[k]) > self.params.forget_s]
+        old = np.array([k for _, k in keep], dtype=np.int64)
+        size = max(64, self._t.shape[0])
+        t, v, a = np.full(size, np.nan), np.zeros(size), np.zeros(size)
+        t[: old.size], v[: old.size], a[: old.size] = self._t[old], self._v[old], self._a[old]
+        self._t, self._v, self._a = t, v, a
+        self._slot = {vid: n for n, (vid, _) in enumerate(keep)}
+        self._ids = None
 
 
 __all__ = ["AccelerationTracker", "TrackingParams"]

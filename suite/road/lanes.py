@@ -12,20 +12,27 @@ and lane-length differences along a long route do not accumulate), each with
   for a lane that ends or leaves the route (an acceleration lane, an exit);
 
 and the index of the lane the reference follows on that edge.
+
+Everything but the two numbers that move with s (offset, continuation) is prepared once
+per route edge (:class:`_EdgeLanes`); the offsets are scalar interpolations on Python
+lists (:func:`suite.road.interp.interp_scalar`, numpy.interp's numbers bit for bit), so a
+lookup costs a few microseconds a lane.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
 from controllers.behaviour.types import LaneContext, LaneSlot
 from controllers.path.frenet import FrenetPath
+from suite.road.interp import interp_scalar
 from suite.road.lane_graph import RouteLaneGraph
-from suite.road.network import LaneInfo, RoadNetwork
+from suite.road.network import RoadNetwork
 from suite.road.route_reference import RouteReference
 
 FloatArray = npt.NDArray[np.float64]
@@ -39,6 +46,40 @@ def _resample_shape(shape: FloatArray, step_m: float) -> FloatArray:
         return shape[:1]
     s = np.linspace(0.0, cum[-1], max(int(math.ceil(cum[-1] / step_m)), 1) + 1)
     return np.column_stack([np.interp(s, cum, shape[:, 0]), np.interp(s, cum, shape[:, 1])])
+
+
+@dataclass(frozen=True)
+class _LaneProfile:
+    """One lane of a route edge, prepared for :meth:`LaneContextMap.at`: its fixed slot
+    fields, its offset profile as lists (s on the path ascending [m], offset [m]) with
+    the window [s_lo_m, s_hi_m] where it is known (1 m beyond the samples), and the route
+    position where it ends [m] (inf through)."""
+
+    index: int
+    width_m: float
+    allows_passenger: bool
+    is_shoulder: bool
+    s_m: list[float]
+    offset_m: list[float]
+    s_lo_m: float
+    s_hi_m: float
+    end_m: float
+
+    def slot(self, s_m: float, route_pos_m: float) -> LaneSlot:
+        ss, ys = self.s_m, self.offset_m
+        offset = interp_scalar(s_m, ss, ys, ys[0], ys[-1]) \
+            if ss and self.s_lo_m <= s_m <= self.s_hi_m else math.nan
+        return LaneSlot(self.index, self.width_m, self.allows_passenger, self.is_shoulder,
+                        offset_m=offset, continues_m=max(self.end_m - route_pos_m, 0.0))
+
+
+@dataclass(frozen=True)
+class _EdgeLanes:
+    """Route edge k's lanes (in the lane graph's order) and the reference's lane index on
+    it (None: outside the reference's window)."""
+
+    lanes: tuple[_LaneProfile, ...]
+    reference_index: int | None
 
 
 class LaneContextMap:
@@ -55,6 +96,10 @@ class LaneContextMap:
         self._starts = network.route_edge_starts_m(self._route)
         self._profiles: dict[str, dict[int, tuple[FloatArray, FloatArray]]] = {}
         self._ending = self._ending_lanes()
+        self._edge_index: dict[str, int] = {}  # an edge's first place on the route
+        for k, edge in enumerate(self._route):
+            self._edge_index.setdefault(edge, k)
+        self._prepared: dict[int, _EdgeLanes] = {}
 
     def _ending_lanes(self) -> dict[str, dict[int, tuple[float, int]]]:
         """Route edge -> lane index -> (route position where the lane ends, merge side)
@@ -100,13 +145,24 @@ class LaneContextMap:
         edge = self._route[last]
         return self._starts[edge] + self._network.edge_length_m(edge)
 
-    def _slot(self, k: int, lane: LaneInfo, s_m: float, route_pos_m: float) -> LaneSlot:
-        s_prof, y_prof = self._profile(k)[lane.index]
-        inside = s_prof.size and s_prof[0] - 1.0 <= s_m <= s_prof[-1] + 1.0
-        offset = float(np.interp(s_m, s_prof, y_prof)) if inside else math.nan
-        return LaneSlot(lane.index, lane.width_m, lane.allows_passenger, lane.is_shoulder,
-                        offset_m=offset,
-                        continues_m=max(self._end_m(k, lane.index) - route_pos_m, 0.0))
+    def _edge_lanes(self, k: int) -> _EdgeLanes:
+        """Route edge k prepared for :meth:`at` (on first use)."""
+        got = self._prepared.get(k)
+        if got is not None:
+            return got
+        profiles = self._profile(k)
+        lanes = []
+        for lane in self._graph.lanes(k).values():
+            s_prof, y_prof = profiles[lane.index]
+            lo, hi = (float(s_prof[0] - 1.0), float(s_prof[-1] + 1.0)) if s_prof.size \
+                else (math.inf, -math.inf)
+            lanes.append(_LaneProfile(lane.index, lane.width_m, lane.allows_passenger,
+                                      lane.is_shoulder, s_prof.tolist(), y_prof.tolist(), lo,
+                                      hi, self._end_m(k, lane.index)))
+        got = _EdgeLanes(tuple(lanes),
+                         self._reference.lane_index_by_edge.get(self._route[k]))
+        self._prepared[k] = got
+        return got
 
     def route_pos(self, s_m: float) -> float:
         """Route position [m] of arc length ``s_m`` on the reference."""
@@ -115,9 +171,9 @@ class LaneContextMap:
     def at(self, s_m: float) -> LaneContext:
         pos = min(max(self._reference.route_pos(s_m), 0.0), self._length_m - 1e-3)
         edge, _ = self._network.locate(self._route, pos)
-        k = self._route.index(edge)
-        slots = {i: self._slot(k, lane, s_m, pos) for i, lane in self._graph.lanes(k).items()}
-        ref = self._reference.lane_index_by_edge.get(edge)
+        prepared = self._edge_lanes(self._edge_index[edge])
+        slots = {p.index: p.slot(s_m, pos) for p in prepared.lanes}
+        ref = prepared.reference_index
         if ref is None:  # outside the reference's window: the lane nearest the path
             known = {i: abs(sl.offset_m) for i, sl in slots.items() if math.isfinite(sl.offset_m)}
             ref = min(known, key=known.__getitem__) if known else min(slots)

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from suite.road.interp import interp_scalar
 from suite.road.lane_graph import ChainStep, RouteLaneGraph
 from suite.road.network import RoadNetwork
 from suite.road.reference import Resampled, TubeParams, resample, smooth_in_tube
@@ -57,11 +58,18 @@ class RouteReference:
                                left=self.path_s_m[0] + route_pos_m - self.route_pos_m[0],
                                right=self.path_s_m[-1] + route_pos_m - self.route_pos_m[-1]))
 
+    def __post_init__(self) -> None:
+        # route_pos runs every control step: its breakpoints as lists for interp_scalar
+        object.__setattr__(self, "_path_s_list", self.path_s_m.tolist())
+        object.__setattr__(self, "_route_pos_list", self.route_pos_m.tolist())
+
     def route_pos(self, path_s_m: float) -> float:
-        """Route position at an arc length on the reference [m]."""
-        return float(np.interp(path_s_m, self.path_s_m, self.route_pos_m,
-                               left=self.route_pos_m[0] + path_s_m - self.path_s_m[0],
-                               right=self.route_pos_m[-1] + path_s_m - self.path_s_m[-1]))
+        """Route position at an arc length on the reference [m] (linear beyond the ends;
+        numpy.interp's numbers, by :func:`~suite.road.interp.interp_scalar`)."""
+        ss: list[float] = self._path_s_list  # type: ignore[attr-defined]
+        rs: list[float] = self._route_pos_list  # type: ignore[attr-defined]
+        x = float(path_s_m)
+        return interp_scalar(x, ss, rs, rs[0] + x - ss[0], rs[-1] + x - ss[-1])
 
     @property
     def max_offset_m(self) -> float:
