@@ -87,7 +87,8 @@ class LaneKeepController:
         veh = self._ctx.vehicle
         x, y, psi, u, v = (float(observation.state[i]) for i in range(5))
         speed = math.hypot(u, v)
-        # Rear axle: pure pursuit's geometric centre.
+        # Rear axle: pure pursuit's geometric centre. Its own projection, not the
+        # loop's (observation.ego is the CG's: a different point, l_r behind it).
         rx = x - veh.cg_to_rear_axle_m * math.cos(psi)
         ry = y - veh.cg_to_rear_axle_m * math.sin(psi)
         s, _ = self._path.project(rx, ry, s_hint=self._s_hint)

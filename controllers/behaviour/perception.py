@@ -129,6 +129,10 @@ class LaneScene:
         return {}
 
     @cached_property
+    def _merging_lists(self) -> dict[int, list[int]]:
+        return {}
+
+    @cached_property
     def _entering_cache(self) -> dict[tuple[float, float], list[tuple[int, int]]]:
         return {}
 
@@ -253,9 +257,11 @@ class LaneScene:
     def merging_near(self, rel: int, behind_m: float, ahead_m: float) -> list[int]:
         """Indices of the vehicles merging into relative lane ``rel`` (:meth:`merging`)
         whose centre is within [-behind_m, ahead_m] of the ego's CG along the path."""
+        cache = self._merging_lists
+        if rel not in cache:
+            cache[rel] = np.flatnonzero(self.merging(rel)).tolist()
         ds = self.ds_m
-        return [int(j) for j in np.flatnonzero(self.merging(rel))
-                if -behind_m <= float(ds[j]) <= ahead_m]
+        return [j for j in cache[rel] if -behind_m <= float(ds[j]) <= ahead_m]
 
     def entering_near(self, behind_m: float, ahead_m: float) -> list[tuple[int, int]]:
         """(index, side: -1 right, +1 left) of the vehicles about to enter the

@@ -401,7 +401,7 @@ class FrenetPath:
         need = _project_along_many(self._meta, self._coef, self._knot_xy, xf, yf,
                                    float(x_ref), float(y_ref), float(s_ref), cos_g0, sin_g0,
                                    s_out, d_out, g_out)
-        if need.any():
+        if np.count_nonzero(need):  # C call: ndarray.any() goes through Python wrappers
             s2, d2 = self.project(xf[need], yf[need])
             s_out[need], d_out[need] = s2, d2
             g_out[need] = self.gamma(s2)
