@@ -179,3 +179,22 @@ def test_cached_reuses_and_rejects_bad_input() -> None:
         FrenetPath.from_polyline(np.zeros((1, 2)))
     with pytest.raises(ValueError):
         FrenetPath.from_polyline(np.array([[0.0, 0.0], [np.nan, 1.0]]))
+
+
+def test_compiled_kappa_equals_the_array_form_bit_for_bit() -> None:
+    """FrenetPath.kappa (one compiled pass) returns what the numpy form _gk does, beyond
+    the tables, at knots, NaN and inf included."""
+    rng = np.random.default_rng(11)
+    t = np.linspace(0.0, 3.0, 400)
+    pts = np.column_stack([300.0 * np.sin(t), 300.0 * (1.0 - np.cos(t)) + 5.0 * np.sin(7 * t)])
+    path = FrenetPath.from_polyline(pts)
+    meta = path.tables()[0]
+    knots = meta[0] + meta[1] * np.arange(int(meta[2]) + 1)
+    s = np.concatenate([rng.uniform(-50.0, path.length_m + 50.0, 20000), knots,
+                        [np.nan, np.inf, -np.inf, 1e300, -1e300]])
+    with np.errstate(invalid="ignore"):  # NaN and inf through numpy's casts
+        want = path._gk(s)[1]
+    got = path.kappa(s)
+    assert got.shape == s.shape
+    np.testing.assert_array_equal(got, want)
+    assert float(path.kappa(100.0)) == float(path._gk(100.0)[1])

@@ -324,8 +324,13 @@ class FrenetPath:
         return out.reshape(s_arr.shape)
 
     def kappa(self, s: np.ndarray | float) -> np.ndarray:
-        """Signed curvature d gamma / ds [1/m] (positive turning left)."""
-        return self._gk(s)[1]
+        """Signed curvature d gamma / ds [1/m] (positive turning left); one compiled pass
+        of :func:`path_gamma` (the numbers of the array form ``_gk`` bit for bit,
+        tests/test_frenet.py), since the behaviour asks for it inside control steps."""
+        s_arr = np.asarray(s, dtype=np.float64)
+        out = np.empty(s_arr.size)
+        _kappa_many(self._meta, self._coef, s_arr.reshape(-1).copy(), out)
+        return out.reshape(s_arr.shape)
 
     def dkappa(self, s: np.ndarray | float) -> np.ndarray:
         """d kappa / ds [1/m²]."""
@@ -454,6 +459,19 @@ def _project_along_many(meta: np.ndarray, coef: np.ndarray, knot_xy: np.ndarray,
 def _gamma_many(meta: np.ndarray, coef: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
     for i in range(s.shape[0]):
         out[i] = path_gamma(meta, coef, s[i])[0]
+
+
+@numba.njit(cache=True)
+def _kappa_many(meta: np.ndarray, coef: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
+    """kappa at every s: NaN for NaN, 0 beyond the tables (inf included) as ``_gk``."""
+    for i in range(s.shape[0]):
+        x = s[i]
+        if x != x:
+            out[i] = np.nan
+        elif not (x - meta[0]) / meta[1] < meta[2]:  # beyond the end (before int())
+            out[i] = 0.0
+        else:
+            out[i] = path_gamma(meta, coef, x)[1]
 
 
 @numba.njit(cache=True)
