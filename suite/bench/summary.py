@@ -67,7 +67,16 @@ def dense_lines(d: DenseRunFigures, fl: FloorFigures) -> list[str]:
         f"step {fl.sumo_per_run_s:.3f} s + that Python; floor study, {fl.runs} runs)",
         f"  behaviour + controller step, worst run: p99 {d.step_p99_ms_worst:.3f} ms "
         f"({d.step_p99_worst_run}), max {d.step_max_ms_worst:.3f} ms ({d.step_max_worst_run})",
+        f"  this machine's bound: the kernel and SUMO's step alone (no Python, no build) "
+        f"run a {d.duration_s:g} s run at x{compiled_only_factor(d, fl):.1f} real time",
     ]
+
+
+def compiled_only_factor(d: DenseRunFigures, fl: FloorFigures) -> float:
+    """Simulated time over the C/GMRES kernel's and SUMO's step's time per run: the
+    one-run real-time factor with every other part free (NaN when they took no time)."""
+    compiled = fl.kernel_per_run_s + fl.sumo_per_run_s
+    return d.duration_s / compiled if compiled > 0 else float("nan")
 
 
 def command_lines(c: CommandFigures, fl: FloorFigures | None, cpus: int | None,
