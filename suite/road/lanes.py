@@ -66,9 +66,10 @@ class _LaneProfile:
     end_m: float
 
     def slot(self, s_m: float, route_pos_m: float) -> LaneSlot:
-        ss, ys = self.s_m, self.offset_m
-        offset = interp_scalar(s_m, ss, ys, ys[0], ys[-1]) \
-            if ss and self.s_lo_m <= s_m <= self.s_hi_m else math.nan
+        ys = self.offset_m
+        # no samples: the window is empty (s_lo_m = inf > s_hi_m = -inf)
+        offset = interp_scalar(s_m, self.s_m, ys, ys[0], ys[-1]) \
+            if self.s_lo_m <= s_m <= self.s_hi_m else math.nan
         return LaneSlot(self.index, self.width_m, self.allows_passenger, self.is_shoulder,
                         offset_m=offset, continues_m=max(self.end_m - route_pos_m, 0.0))
 
@@ -94,17 +95,15 @@ class LaneContextMap:
         self._graph = RouteLaneGraph(network, self._route)
         self._length_m = network.route_length_m(self._route)
         self._starts = network.route_edge_starts_m(self._route)
-        self._profiles: dict[str, dict[int, tuple[FloatArray, FloatArray]]] = {}
         self._ending = self._ending_lanes()
-        self._edge_index: dict[str, int] = {}  # an edge's first place on the route
+        # Every edge at build time, at its first place on the route (the one a route
+        # position maps to): prepared on first use, an edge's lane profiles (its lanes'
+        # shapes projected onto the path, ~1.5 ms) landed in the control step the ego
+        # entered it, one of the longest steps of a run.
+        self._edges: dict[str, _EdgeLanes] = {}
         for k, edge in enumerate(self._route):
-            self._edge_index.setdefault(edge, k)
-        self._prepared: dict[int, _EdgeLanes] = {}
-        # Every edge now, at build time: prepared on first use, an edge's lane profiles
-        # (its lanes' shapes projected onto the path, ~1.5 ms) landed in the control step
-        # the ego entered it, one of the longest steps of a run.
-        for k in range(len(self._route)):
-            self._edge_lanes(k)
+            if edge not in self._edges:
+                self._edges[edge] = self._edge_lanes(k)
 
     def _ending_lanes(self) -> dict[str, dict[int, tuple[float, int]]]:
         """Route edge -> lane index -> (route position where the lane ends, merge side)
@@ -128,10 +127,6 @@ class LaneContextMap:
 
     def _profile(self, k: int) -> dict[int, tuple[FloatArray, FloatArray]]:
         """Lane index -> (s on the path, offset) along that lane of route edge k."""
-        edge = self._route[k]
-        cached = self._profiles.get(edge)
-        if cached is not None:
-            return cached
         out: dict[int, tuple[FloatArray, FloatArray]] = {}
         for i, lane in self._graph.lanes(k).items():
             pts = _resample_shape(np.asarray(lane.shape_xy_m, dtype=np.float64), _SAMPLE_M)
@@ -139,7 +134,6 @@ class LaneContextMap:
             order = np.argsort(s)
             out[i] = (np.asarray(s, dtype=np.float64)[order],
                       np.asarray(y, dtype=np.float64)[order])
-        self._profiles[edge] = out
         return out
 
     def _end_m(self, k: int, i: int) -> float:
@@ -151,10 +145,7 @@ class LaneContextMap:
         return self._starts[edge] + self._network.edge_length_m(edge)
 
     def _edge_lanes(self, k: int) -> _EdgeLanes:
-        """Route edge k prepared for :meth:`at` (on first use)."""
-        got = self._prepared.get(k)
-        if got is not None:
-            return got
+        """Route edge k prepared for :meth:`at`."""
         profiles = self._profile(k)
         lanes = []
         for lane in self._graph.lanes(k).values():
@@ -164,10 +155,7 @@ class LaneContextMap:
             lanes.append(_LaneProfile(lane.index, lane.width_m, lane.allows_passenger,
                                       lane.is_shoulder, s_prof.tolist(), y_prof.tolist(), lo,
                                       hi, self._end_m(k, lane.index)))
-        got = _EdgeLanes(tuple(lanes),
-                         self._reference.lane_index_by_edge.get(self._route[k]))
-        self._prepared[k] = got
-        return got
+        return _EdgeLanes(tuple(lanes), self._reference.lane_index_by_edge.get(self._route[k]))
 
     def route_pos(self, s_m: float) -> float:
         """Route position [m] of arc length ``s_m`` on the reference."""
@@ -176,7 +164,7 @@ class LaneContextMap:
     def at(self, s_m: float) -> LaneContext:
         pos = min(max(self._reference.route_pos(s_m), 0.0), self._length_m - 1e-3)
         edge, _ = self._network.locate(self._route, pos)
-        prepared = self._edge_lanes(self._edge_index[edge])
+        prepared = self._edges[edge]
         slots = {p.index: p.slot(s_m, pos) for p in prepared.lanes}
         ref = prepared.reference_index
         if ref is None:  # outside the reference's window: the lane nearest the path

@@ -17,7 +17,7 @@ positions map onto it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -51,6 +51,13 @@ class RouteReference:
     lane_index_by_edge: dict[str, int]
     route_pos_m: FloatArray
     path_s_m: FloatArray
+    # route_pos runs every control step: its breakpoints as lists for interp_scalar
+    _path_s_list: list[float] = field(init=False, repr=False, compare=False)
+    _route_pos_list: list[float] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_path_s_list", self.path_s_m.tolist())
+        object.__setattr__(self, "_route_pos_list", self.route_pos_m.tolist())
 
     def path_s(self, route_pos_m: float) -> float:
         """Arc length on the reference at a route position [m] (linear beyond the ends)."""
@@ -58,16 +65,10 @@ class RouteReference:
                                left=self.path_s_m[0] + route_pos_m - self.route_pos_m[0],
                                right=self.path_s_m[-1] + route_pos_m - self.route_pos_m[-1]))
 
-    def __post_init__(self) -> None:
-        # route_pos runs every control step: its breakpoints as lists for interp_scalar
-        object.__setattr__(self, "_path_s_list", self.path_s_m.tolist())
-        object.__setattr__(self, "_route_pos_list", self.route_pos_m.tolist())
-
     def route_pos(self, path_s_m: float) -> float:
         """Route position at an arc length on the reference [m] (linear beyond the ends;
         numpy.interp's numbers, by :func:`~suite.road.interp.interp_scalar`)."""
-        ss: list[float] = self._path_s_list  # type: ignore[attr-defined]
-        rs: list[float] = self._route_pos_list  # type: ignore[attr-defined]
+        ss, rs = self._path_s_list, self._route_pos_list
         x = float(path_s_m)
         return interp_scalar(x, ss, rs, rs[0] + x - ss[0], rs[-1] + x - ss[-1])
 
