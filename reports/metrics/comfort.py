@@ -19,6 +19,18 @@ polynomial order ``SG_POLYORDER`` = 2 over ``SG_WINDOW_S`` = 0.5 s, i.e.
 traces (np.gradient below 3 samples). Accelerations and the yaw rate are
 smoothed with the same filter (derivative order 0) before their extremes are taken;
 ``mode='interp'`` reproduces ramps and constants exactly, end samples included.
+
+Derivatives at the ends: every derivative here (jerks, yaw acceleration, and the yaw
+rate and accelerations rebuilt from yaw, u and v) takes, in the first and last half
+window (window // 2 samples, 0.24 s at 50 Hz), the value of the first and last
+*complete* window, i.e. the centred estimate nearest the end (``ends="hold"`` of
+:func:`reports.metrics.savgol.savgol_filter`), never the one-sided fit evaluated at the
+end samples. That fit extrapolates: a kink in the last half second became a jerk of
+4.72 m/s³ (fail) at a trace's last row where the raw jerk is <= 2.97 and the centred
+filter gives 2.19, and 8.99 at another run's last row where the raw signal is <= 3. A
+held value is one of the centred ones, so the ends add no extreme of their own; a
+constant jerk (a ramp of acceleration) is still exact up to the ends, and a change of
+it within the last half window counts as much as the last centred window sees of it.
 """
 
 from __future__ import annotations
@@ -52,7 +64,9 @@ def sg_window(n: int, dt: float) -> int:
 
 def sg(values: np.ndarray, dt: float, deriv: int = 0) -> FloatColumn:
     """Savitzky–Golay smoothing (deriv=0) or derivative (deriv≥1) of a uniformly sampled
-    signal. NaNs are linearly interpolated first; all-NaN input gives all-NaN output."""
+    signal (T,) at period dt [s]. NaNs are linearly interpolated first; all-NaN input
+    gives all-NaN output. Smoothing fits the ends (scipy's ``mode='interp'``); a
+    derivative holds the first and last complete window's value there (module doc)."""
     y = np.asarray(values, dtype=np.float64)
     n = y.size
     if n == 0:
@@ -67,7 +81,8 @@ def sg(values: np.ndarray, dt: float, deriv: int = 0) -> FloatColumn:
         return np.full(n, np.nan)
     w = sg_window(n, dt)
     if w > SG_POLYORDER:
-        out: FloatColumn = savgol_filter(y, w, SG_POLYORDER, deriv=deriv, delta=dt)
+        out: FloatColumn = savgol_filter(y, w, SG_POLYORDER, deriv=deriv, delta=dt,
+                                         ends="hold" if deriv > 0 else "interp")
         return out
     if deriv == 0:
         return y
