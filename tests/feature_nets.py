@@ -18,9 +18,12 @@ path of the written ``<name>.net.xml`` in ``out_dir``; netconvert warnings are e
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 from pathlib import Path
+
+import numpy as np
 
 from sumo_nets import LANE_WIDTH_M, sumo_home
 from sumo_nets.build import NETCONVERT_OPTIONS, netconvert_path
@@ -28,7 +31,8 @@ from sumo_nets.build import NETCONVERT_OPTIONS, netconvert_path
 SPEED_MPS = 33.33
 
 
-def _netconvert(name: str, out_dir: Path, nod: str, edg: str, con: str) -> Path:
+def _netconvert(name: str, out_dir: Path, nod: str, edg: str, con: str,
+                extra: tuple[str, ...] = ()) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     src = {"nod": out_dir / f"{name}.nod.xml", "edg": out_dir / f"{name}.edg.xml",
            "con": out_dir / f"{name}.con.xml"}
@@ -38,7 +42,7 @@ def _netconvert(name: str, out_dir: Path, nod: str, edg: str, con: str) -> Path:
     out = out_dir / f"{name}.net.xml"
     cmd = [str(netconvert_path()), "--node-files", str(src["nod"]), "--edge-files",
            str(src["edg"]), "--connection-files", str(src["con"]), *NETCONVERT_OPTIONS,
-           "--output-file", str(out)]
+           *extra, "--output-file", str(out)]
     res = subprocess.run(cmd, capture_output=True, text=True, check=False,
                          env={**os.environ, "SUMO_HOME": sumo_home()})
     msgs = (res.stdout + res.stderr).strip()
@@ -94,3 +98,61 @@ def taper_net(out_dir: Path, *, lanes: int = 3, taper_at_m: float = 600.0,
     con += "".join(f'    <connection from="t" to="b" fromLane="{i + 1}" toLane="{i}"/>\n'
                    for i in range(lanes - 1))
     return _netconvert(name, out_dir, nod, edg, con)
+
+
+def _shape(points: list[tuple[float, float]]) -> str:
+    return " ".join(f"{x:.3f},{y:.3f}" for x, y in points)
+
+
+def kinked_net(out_dir: Path, *, radius_m: float = 4400.0, vertex_spacing_m: float = 60.0,
+               kink_at_m: float = 700.0, kink_offset_m: float = 1.5, length_m: float = 1500.0,
+               lanes: int = 2, name: str = "kinked") -> Path:
+    """One edge ``a`` of ``lanes`` lanes along a left arc of ``radius_m`` from (0, 0)
+    heading +X, its shape a polyline with vertices every ``vertex_spacing_m``, as an
+    OpenStreetMap way digitises such a road, except that the vertex at ``kink_at_m`` is
+    moved ``kink_offset_m`` to the left with a second vertex 30 m before it (a
+    digitising error: two kinks of opposite sign 30 m apart, +2.9° and -7.1° by
+    default, on a road whose true radius is ``radius_m``). The true road is the arc."""
+    def arc(s: float, lateral: float = 0.0) -> tuple[float, float]:
+        phi = s / radius_m
+        return ((radius_m - lateral) * math.sin(phi),
+                radius_m - (radius_m - lateral) * math.cos(phi))
+    stations = sorted({*np.arange(0.0, length_m, vertex_spacing_m).tolist(), length_m,
+                       kink_at_m - 30.0, kink_at_m})
+    pts = [arc(s, kink_offset_m if s == kink_at_m else 0.0) for s in stations]
+    nod = (f'    <node id="n0" x="{pts[0][0]:.3f}" y="{pts[0][1]:.3f}"/>\n'
+           f'    <node id="n1" x="{pts[-1][0]:.3f}" y="{pts[-1][1]:.3f}"/>\n')
+    edg = (f'    <edge id="a" from="n0" to="n1" numLanes="{lanes}" speed="{SPEED_MPS}" '
+           f'priority="10" spreadType="center" width="{LANE_WIDTH_M}" '
+           f'shape="{_shape(pts)}"/>\n')
+    return _netconvert(name, out_dir, nod, edg, "")
+
+
+def curve_exit_net(out_dir: Path, *, radius_m: float = 600.0, name: str = "curve_exit"
+                   ) -> Path:
+    """A two-lane carriageway that gains a lane on the right in a left curve and loses
+    it to an exit: ``a`` (2 lanes, 500 m straight +X), ``b`` (3 lanes, a left arc of
+    ``radius_m`` over 300 m; lane 0 is the added exit lane), ``c`` (2 lanes, straight on
+    from b's end) and the exit ramp ``x`` (1 lane, from b's lane 0, bearing right).
+    Route ``a b c``: lane 0 of b is a lane that leaves the route."""
+    phi = 300.0 / radius_m
+    arc = [(500.0 + radius_m * math.sin(phi * k / 30), radius_m * (1 - math.cos(phi * k / 30)))
+           for k in range(31)]
+    end = arc[-1]
+    heading = phi
+    c_end = (end[0] + 700.0 * math.cos(heading), end[1] + 700.0 * math.sin(heading))
+    x_end = (end[0] + 400.0 * math.cos(heading - 0.6), end[1] + 400.0 * math.sin(heading - 0.6))
+    nod = ('    <node id="n0" x="0" y="0"/>\n    <node id="n1" x="500" y="0"/>\n'
+           f'    <node id="n2" x="{end[0]:.3f}" y="{end[1]:.3f}"/>\n'
+           f'    <node id="n3" x="{c_end[0]:.3f}" y="{c_end[1]:.3f}"/>\n'
+           f'    <node id="n4" x="{x_end[0]:.3f}" y="{x_end[1]:.3f}"/>\n')
+    edg = (_edge("a", "n0", "n1", 2)
+           + _edge("b", "n1", "n2", 3).replace(">", f' shape="{_shape(arc)}">', 1)
+           + _edge("c", "n2", "n3", 2) + _edge("x", "n2", "n4", 1))
+    con = ('    <connection from="a" to="b" fromLane="0" toLane="1"/>\n'
+           '    <connection from="a" to="b" fromLane="1" toLane="2"/>\n'
+           '    <connection from="b" to="x" fromLane="0" toLane="0"/>\n'
+           '    <connection from="b" to="c" fromLane="1" toLane="0"/>\n'
+           '    <connection from="b" to="c" fromLane="2" toLane="1"/>\n')
+    # the ramp's sharp fork would warn that its speed is cut: no speed limit by turns
+    return _netconvert(name, out_dir, nod, edg, con, ("--junctions.limit-turn-speed", "-1"))

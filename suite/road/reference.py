@@ -53,7 +53,14 @@ class TubeParams:
     as an S-jog) gets a *jog zone*: over sqrt(jog_radius_m |d|) [m] before and after the
     junction the tube widens to |d| + lane_tube_m, so the reference crosses from one lane
     centre to the other as an S of radius about ``jog_radius_m`` instead of jogging.
-    Jogs below ``jog_min_m`` [m] are left to the junction tube."""
+    Jogs below ``jog_min_m`` [m] are left to the junction tube.
+
+    Digitising kinks (:func:`smooth_within_support`): the reference's curvature is bounded
+    by what the polyline's overall geometry supports, ``support_margin`` x the largest
+    Menger curvature of the polyline over arms ``support_arms_m`` [m] plus
+    ``support_slack_per_m`` [1/m]; where the curve bends more, the tube is doubled
+    over ``kink_reach_m`` [m] around the spot, up to ``kink_tube_max_m`` [m], at most
+    ``kink_passes`` times."""
 
     spacing_m: float = 1.0
     lane_tube_m: float = 0.10
@@ -63,10 +70,26 @@ class TubeParams:
     jog_radius_m: float = 1000.0
     jog_min_m: float = 0.15
     base_smoothing_m: float = 15.0
+    kink_tube_max_m: float = 0.8
+    support_arms_m: tuple[float, ...] = (75.0, 150.0)
+    support_margin: float = 1.25
+    support_slack_per_m: float = 1.0 / 3000.0
+    kink_reach_m: float = 40.0
+    kink_passes: int = 5
 
     def __post_init__(self) -> None:
+        if not (self.support_arms_m and all(
+                isinstance(a, int | float) and math.isfinite(a) and a > 0
+                for a in self.support_arms_m)):
+            raise ValueError("TubeParams.support_arms_m must be numbers > 0, got "
+                             f"{self.support_arms_m!r}")
+        if isinstance(self.kink_passes, bool) or not (isinstance(self.kink_passes, int)
+                                                      and self.kink_passes >= 0):
+            raise ValueError(f"TubeParams.kink_passes must be an int >= 0, got "
+                             f"{self.kink_passes!r}")
         for name in ("spacing_m", "lane_tube_m", "junction_tube_m", "w3", "w_off",
-                     "jog_radius_m", "jog_min_m", "base_smoothing_m"):
+                     "jog_radius_m", "jog_min_m", "base_smoothing_m", "kink_tube_max_m",
+                     "support_margin", "support_slack_per_m", "kink_reach_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v)
                                            and v > 0):
@@ -222,22 +245,123 @@ def _offsets_kernel(base: FloatArray, normals: FloatArray, poly: FloatArray,
 
 
 def _solve(base: FloatArray, normals: FloatArray, lo: FloatArray, hi: FloatArray,
-           params: TubeParams) -> FloatArray:
-    """Offsets o minimising the bending energy of base + o normals within [lo, hi]."""
+           params: TubeParams, centring: FloatArray | None = None) -> FloatArray:
+    """Offsets o minimising the bending energy of base + o normals within [lo, hi];
+    ``centring`` (n,) scales the stay-centred weight ``w_off`` per point (default 1)."""
     n = len(base)
     d2 = sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(n - 2, n))
     d3 = sp.diags([-1.0, 3.0, -3.0, 1.0], [0, 1, 2, 3], shape=(n - 3, n))
     nx, ny = sp.diags(normals[:, 0]), sp.diags(normals[:, 1])
     w3 = math.sqrt(params.w3) / params.spacing_m  # third differences are h³, second h²
+    root = math.sqrt(params.w_off) * (np.ones(n) if centring is None else np.sqrt(centring))
     a = sp.vstack([d2 @ nx, d2 @ ny, w3 * (d3 @ nx), w3 * (d3 @ ny),
-                   math.sqrt(params.w_off) * sp.eye(n)]).tocsr()
+                   sp.diags(root)]).tocsr()
     mid = 0.5 * (lo + hi)  # the centred curve is the "stay centred" target
     b = np.concatenate([-(d2 @ base[:, 0]), -(d2 @ base[:, 1]), -w3 * (d3 @ base[:, 0]),
-                        -w3 * (d3 @ base[:, 1]), math.sqrt(params.w_off) * mid])
+                        -w3 * (d3 @ base[:, 1]), root * mid])
     return box_qp(a.T @ a, -(a.T @ b), lo, hi)
 
 
-def smooth_in_tube(res: Resampled, params: TubeParams, half_width_m: FloatArray | None = None
+def curvature_of(curve: FloatArray) -> FloatArray:
+    """Signed curvature [1/m] of a densely sampled curve (n, 2), central differences
+    (np.gradient's one-sided ones at the ends)."""
+    d1 = np.gradient(curve, axis=0)
+    d2 = np.gradient(d1, axis=0)
+    speed = np.maximum(np.hypot(*d1.T), 1e-12)
+    out: FloatArray = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / speed ** 3
+    return out
+
+
+def support_curvature(points: FloatArray, s_m: FloatArray, arms_m: tuple[float, ...]
+                      ) -> FloatArray:
+    """|curvature| [1/m] the polyline's overall geometry supports at each of its points
+    (n, 2) at arc lengths ``s_m`` (n,): the largest over the arms a of the Menger
+    curvature 2 |(B - A) x (C - A)| / (|B - A| |C - B| |C - A|) of A = P(s - a), B = P(s),
+    C = P(s + a) (clipped to the ends).
+
+    On a circular arc this is exactly 1/R whatever the arm; a vertex displaced by d
+    (a digitising kink) moves it by about 2 d / a² only, where the kink itself turns
+    like R = 8 tube / alpha²."""
+    out = np.zeros(len(s_m))
+    for arm in arms_m:
+        at = [np.column_stack([np.interp(np.clip(s_m + k * arm, s_m[0], s_m[-1]), s_m,
+                                         points[:, i]) for i in range(2)])
+              for k in (-1.0, 0.0, 1.0)]
+        a, b, c = at
+        cross = np.abs((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
+        sides = np.hypot(*(b - a).T) * np.hypot(*(c - b).T) * np.hypot(*(c - a).T)
+        out = np.maximum(out, np.where(sides > 1e-9, 2.0 * cross / np.maximum(sides, 1e-12),
+                                       0.0))
+    return out
+
+
+def smooth_within_support(res: Resampled, params: TubeParams, half_width_m: FloatArray,
+                          room: tuple[BoolArray, BoolArray] | None = None
+                          ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`smooth_in_tube`, with the tube widened where the curve would bend more than
+    the polyline's overall geometry supports (a digitising kink: OSM polylines step
+    their heading by up to ~7° every 30-120 m on roads of kilometres of radius, and a
+    0.10 m tube turns such a kink into a bend of ~100 m radius).
+
+    The allowed curvature is ``support_margin`` x :func:`support_curvature` +
+    ``support_slack_per_m``. Each pass finds the points where the solution exceeds it
+    (not within 3 points of an end) and doubles the half-width within ``kink_reach_m`` of
+    them, up to ``kink_tube_max_m`` (a wider tube, a junction's or a jog zone's, is never
+    narrowed); at most ``kink_passes`` passes. ``room`` = (right, left) (n,) each: where
+    the lane has a neighbour lane on that side; the tube widens only towards a
+    neighbour (never towards the road's edge, where a car 0.8 m off its lane's centre
+    would leave the road; default: both sides). Returns (points (n, 2), offsets (n,) as
+    :func:`smooth_in_tube`, the larger half-width (n,) finally used on either side [m])."""
+    base_half = np.asarray(half_width_m, dtype=np.float64)
+    right, left = base_half.copy(), base_half.copy()
+    room_right, room_left = room if room is not None else (np.ones(len(base_half), bool),) * 2
+    curve, offsets = smooth_in_tube(res, params, base_half)
+    if len(res.s_m) < 8 or params.kink_passes == 0:
+        return curve, offsets, base_half
+    allowed = (params.support_margin * support_curvature(res.points, res.s_m,
+                                                          params.support_arms_m)
+               + params.support_slack_per_m)
+    reach = max(int(round(params.kink_reach_m / params.spacing_m)), 1)
+    for _ in range(params.kink_passes):
+        over = np.abs(curvature_of(curve)) > allowed
+        over[:3] = over[-3:] = False
+        if not np.any(over):
+            break
+        near = np.convolve(over.astype(np.float64), np.ones(2 * reach + 1), mode="same") > 0
+        wider_right = _widen(right, near & room_right, params)
+        wider_left = _widen(left, near & room_left, params)
+        if np.array_equal(wider_right, right) and np.array_equal(wider_left, left):
+            break
+        right, left = wider_right, wider_left
+        curve, offsets = smooth_in_tube(res, params, right,
+                                        _centring(np.maximum(right, left), base_half, params),
+                                        half_left_m=left)
+    return curve, offsets, np.maximum(right, left)
+
+
+def _widen(half: FloatArray, where: BoolArray, params: TubeParams) -> FloatArray:
+    """``half`` doubled where ``where``, up to ``kink_tube_max_m`` (never narrowed)."""
+    out: FloatArray = np.where(where, np.maximum(half, np.minimum(2.0 * half,
+                                                                  params.kink_tube_max_m)),
+                               half)
+    return out
+
+
+def _centring(half: FloatArray, base_half: FloatArray, params: TubeParams) -> FloatArray:
+    """The stay-centred weight's scale per point: (lane tube / half-width)² where the tube
+    was widened for a digitising kink (``half`` > ``base_half``), else 1. There the curve
+    must be free to leave the polyline's corner: the full pull to the centre holds it to
+    the kink (with a 0.8 m tube and the full weight a 5° kink still bends the reference to
+    R ~ 280 m). A jog zone's or a junction's own tube keeps the full pull: it is as wide on
+    the road edge's side as on the other, and a free curve would drift towards the edge."""
+    out: FloatArray = np.where(half > base_half,
+                               np.minimum((params.lane_tube_m / np.maximum(half, 1e-9)) ** 2,
+                                          1.0), 1.0)
+    return out
+
+
+def smooth_in_tube(res: Resampled, params: TubeParams, half_width_m: FloatArray | None = None,
+                   centring: FloatArray | None = None, half_left_m: FloatArray | None = None
                    ) -> tuple[FloatArray, FloatArray]:
     """The minimum-curvature curve inside the tube (module docstring): (points (n, 2),
     signed distance (n,) of each point from the polyline, left +).
@@ -250,11 +374,14 @@ def smooth_in_tube(res: Resampled, params: TubeParams, half_width_m: FloatArray 
     from the base along its normal.
 
     ``half_width_m`` (n,) overrides the tube's half-width per point (default: the lane
-    or junction tube of ``params`` by ``res.junction``).
+    or junction tube of ``params`` by ``res.junction``), on the right and, without
+    ``half_left_m`` (n,), on the left too; ``centring`` (n,) scales the stay-centred
+    weight per point (default 1).
     """
     n = len(res.s_m)
     half = (np.where(res.junction, params.junction_tube_m, params.lane_tube_m)
             if half_width_m is None else np.asarray(half_width_m, dtype=np.float64))
+    left = half if half_left_m is None else np.asarray(half_left_m, dtype=np.float64)
     if n < 8:
         return res.points.copy(), np.zeros(n)
     sigma = max(params.base_smoothing_m / params.spacing_m, 1.0)
@@ -266,8 +393,9 @@ def smooth_in_tube(res: Resampled, params: TubeParams, half_width_m: FloatArray 
         o0 = offsets_to_polyline(base, normals, res.points)
         # 1 mm inside the tube: the bound is along the base normal, the deviation is the
         # true distance to the polyline (equal to first order, not exactly).
-        inner = np.maximum(half - 1e-3, 0.5 * half)
-        offsets = _solve(base, normals, o0 - inner, o0 + inner, params)
+        inner_right = np.maximum(half - 1e-3, 0.5 * half)
+        inner_left = np.maximum(left - 1e-3, 0.5 * left)
+        offsets = _solve(base, normals, o0 - inner_right, o0 + inner_left, params, centring)
         curve = base + normals * offsets[:, None]
         base = curve
     normals = _normals(curve)

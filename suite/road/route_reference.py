@@ -11,7 +11,18 @@ positions map onto it.
    and ``junction_tube_m`` of the bridges (:mod:`suite.road.reference`), cropped to the
    stretch the run can use.
 4. Route positions (what catalogs give: edge lengths plus mean junction lengths) map
-   to arc length on the curve piecewise linearly, edge start to edge start.
+   to arc length on the curve by *projection*: every vertex of every chain lane has a
+   route position (SUMO's own lane position: the edge's start plus the vertex's share
+   of the lane shape's length times the edge length) and an arc length on the curve (the
+   vertex projected onto it); between vertices the map is linear.
+
+Why projection and not a length ratio: the curve is smoothed, so its arc length is not
+the polyline's, and near the polyline's ends a smoothing window reaches past them. The
+polyline is therefore extended straight by :data:`END_EXTENSION_M` at both ends before
+smoothing and the curve cropped after, at the projections of the chain's first and last
+vertex: the curve starts where the lane starts, and a route position lands on the curve
+beside the point of the lane polyline SUMO puts it at (tests/test_placement*.py check
+the front bumper at t = 0 against the lane polyline itself).
 """
 
 from __future__ import annotations
@@ -25,10 +36,15 @@ import numpy.typing as npt
 from suite.road.interp import interp_scalar
 from suite.road.lane_graph import ChainStep, RouteLaneGraph
 from suite.road.network import RoadNetwork
-from suite.road.reference import Resampled, TubeParams, resample, smooth_in_tube
+from suite.road.reference import Resampled, TubeParams, resample, smooth_within_support
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
+
+END_EXTENSION_M = 60.0
+"""The straight extension [m] of the chain polyline at both ends before smoothing: more
+than the base smoothing's reach (a Gaussian of ``TubeParams.base_smoothing_m``, 15 m,
+counted to 3 sigma), so the cropped curve's ends are smoothed like its interior."""
 
 
 @dataclass(frozen=True)
@@ -148,26 +164,130 @@ def build_reference(network: RoadNetwork, route: tuple[str, ...], ego_pos_m: flo
                  if starts[route[st.k]] + network.edge_length_m(route[st.k]) >= lo
                  and starts[route[st.k]] <= hi] or chain
     poly, junction, spans = _chain_polyline(chain)
-    res = resample(poly, tube.spacing_m, junction)
-    seg = np.hypot(*np.diff(poly, axis=0).T)
+    ext_poly, ext_junction, ext_spans = _extended(poly, junction, spans, END_EXTENSION_M)
+    res = resample(ext_poly, tube.spacing_m, ext_junction)
+    seg = np.hypot(*np.diff(ext_poly, axis=0).T)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
-    half, jog_zone = _tube_half_widths(poly, cum, spans, res, tube)
-    curve, offsets = smooth_in_tube(res, tube, half)
-    # Arc length on the smooth curve at each polyline vertex ~ along the polyline (the
-    # curve stays within a few centimetres of it); scale to the curve's own length.
-    curve_len = float(np.sum(np.hypot(*np.diff(curve, axis=0).T)))
-    scale = curve_len / cum[-1] if cum[-1] > 0 else 1.0
-    route_pos, path_s = [], []
-    for step, (first, last) in zip(chain, spans, strict=True):
-        start = starts[route[step.k]]
-        route_pos += [start, start + network.edge_length_m(route[step.k])]
-        path_s += [cum[first] * scale, cum[last] * scale]
-    on_lanes = ~(res.junction | jog_zone)
+    half, jog_zone = _tube_half_widths(ext_poly, cum, ext_spans, res, tube)
+    room = _room(network, route, chain, ext_spans, cum, res)
+    full_curve, offsets, used_half = smooth_within_support(res, tube, half, room)
+    full_s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(full_curve, axis=0).T))])
+    # Every chain vertex projected onto the curve, searched near its own place on it.
+    vertex_s = project_along(full_curve, full_s, ext_poly[1:-1], cum[1:-1])
+    s0, s1 = float(vertex_s[0]), float(vertex_s[-1])
+    curve = crop_curve(full_curve, full_s, s0, s1)
+    route_pos, path_s = _breakpoints(network, route, chain, spans, cum[1:-1] - cum[1],
+                                     vertex_s - s0)
+    keep = (res.s_m >= cum[1]) & (res.s_m <= cum[-2])  # not the extensions
+    # Offsets from the lanes where the plain lane tube holds (not junctions, jog zones or
+    # spots widened for a digitising kink).
+    on_lanes = ~(res.junction | jog_zone) & keep & (used_half <= tube.lane_tube_m + 1e-12)
     return RouteReference(
         points_xy_m=curve, polyline_xy_m=poly, polyline_junction=junction,
         offsets_m=offsets[on_lanes] if np.any(on_lanes) else np.zeros(0),
         chain=tuple(chain), lane_index_by_edge={route[st.k]: st.lane.index for st in chain},
-        route_pos_m=np.asarray(route_pos), path_s_m=np.asarray(path_s))
+        route_pos_m=route_pos, path_s_m=path_s)
 
 
-__all__ = ["RouteReference", "build_reference", "math"]
+def _room(network: RoadNetwork, route: tuple[str, ...], chain: list[ChainStep],
+          spans: list[tuple[int, int]], cum: FloatArray, res: Resampled
+          ) -> tuple[BoolArray, BoolArray]:
+    """(right, left) per resampled point: whether the chain's lane there has a lane
+    beside it on that side (index above 0 / below the edge's lane count - 1). Junction
+    bridges and the extensions have none (the tube widens for a kink only towards a
+    neighbour lane)."""
+    right = np.zeros(len(res.s_m), dtype=bool)
+    left = np.zeros(len(res.s_m), dtype=bool)
+    for step, (first, last) in zip(chain, spans, strict=True):
+        on = (res.s_m >= cum[first]) & (res.s_m <= cum[last])
+        index = step.lane.index
+        right |= on & (index > 0)
+        left |= on & (index < network.lane_count(route[step.k]) - 1)
+    return right, left
+
+
+def _extended(poly: FloatArray, junction: BoolArray, spans: list[tuple[int, int]],
+              length_m: float) -> tuple[FloatArray, BoolArray, list[tuple[int, int]]]:
+    """The polyline with one vertex added ``length_m`` beyond each end along its end
+    segment (vertex indices of ``spans`` shifted by one)."""
+    head = poly[0] - length_m * _unit(poly[_distinct(poly, 0, 1)] - poly[0])
+    tail = poly[-1] + length_m * _unit(poly[-1] - poly[_distinct(poly, len(poly) - 1, -1)])
+    return (np.vstack([head, poly, tail]), np.concatenate([[False], junction, [False]]),
+            [(a + 1, b + 1) for a, b in spans])
+
+
+def _distinct(poly: FloatArray, i: int, step: int) -> int:
+    """The first vertex from ``i`` in direction ``step`` that is not at vertex i."""
+    j = i + step
+    while 0 <= j + step < len(poly) and np.hypot(*(poly[j] - poly[i])) < 1e-6:
+        j += step
+    return j
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    out: FloatArray = v / max(float(np.hypot(*v)), 1e-12)
+    return out
+
+
+def project_along(curve: FloatArray, curve_s: FloatArray, points: FloatArray,
+                  guess_s: FloatArray, window_m: float = 40.0) -> FloatArray:
+    """Arc length [m] on ``curve`` (n, 2; arc length ``curve_s`` (n,)) of the orthogonal
+    projection of each of ``points`` (m, 2), searched over the curve's segments within
+    ``window_m`` of ``guess_s`` (m,) (the point's own arc length along the polyline: the
+    curve stays within the tube of it, so the nearest segment is near that place, and a
+    road that comes back near itself cannot capture the projection). Non-decreasing
+    along the points (the chain's vertices are in driving order)."""
+    out = np.empty(len(points))
+    for i, (p, g) in enumerate(zip(points, guess_s, strict=True)):
+        lo = max(int(np.searchsorted(curve_s, g - window_m)) - 1, 0)
+        hi = min(int(np.searchsorted(curve_s, g + window_m)) + 1, len(curve) - 1)
+        a, b = curve[lo:hi], curve[lo + 1:hi + 1]
+        ab = b - a
+        den = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12)
+        t = np.clip(np.einsum("ij,ij->i", p - a, ab) / den, 0.0, 1.0)
+        d = np.hypot(*(a + t[:, None] * ab - p).T)
+        j = int(np.argmin(d))
+        out[i] = curve_s[lo + j] + t[j] * (curve_s[lo + j + 1] - curve_s[lo + j])
+    result: FloatArray = np.maximum.accumulate(out)
+    return result
+
+
+def crop_curve(curve: FloatArray, curve_s: FloatArray, s0: float, s1: float) -> FloatArray:
+    """The part of ``curve`` (n, 2; arc length ``curve_s``) between arc lengths s0 < s1,
+    its ends interpolated exactly at s0 and s1 (inner points closer than 1 cm to an end
+    dropped)."""
+    inner = (curve_s > s0 + 0.01) & (curve_s < s1 - 0.01)
+    ends = np.column_stack([np.interp([s0, s1], curve_s, curve[:, 0]),
+                            np.interp([s0, s1], curve_s, curve[:, 1])])
+    out: FloatArray = np.vstack([ends[:1], curve[inner], ends[1:]])
+    return out
+
+
+def _breakpoints(network: RoadNetwork, route: tuple[str, ...], chain: list[ChainStep],
+                 spans: list[tuple[int, int]], vertex_cum_m: FloatArray, vertex_s_m: FloatArray
+                 ) -> tuple[FloatArray, FloatArray]:
+    """(route positions, arc lengths on the curve) at every chain vertex, strictly
+    increasing in both. A vertex's route position is SUMO's lane position of it: the
+    edge's start plus its share of the lane shape's length times the edge's length."""
+    starts = network.route_edge_starts_m(route)
+    route_pos: list[float] = []
+    path_s: list[float] = []
+    for step, (first, last) in zip(chain, spans, strict=True):
+        edge = route[step.k]
+        shape_len = float(vertex_cum_m[last] - vertex_cum_m[first])
+        scale = network.edge_length_m(edge) / shape_len if shape_len > 0 else 0.0
+        for v in range(first, last + 1):
+            pos = starts[edge] + float(vertex_cum_m[v] - vertex_cum_m[first]) * scale
+            s = float(vertex_s_m[v])
+            if route_pos and pos <= route_pos[-1] + 1e-6:
+                continue  # a repeated vertex adds nothing
+            if route_pos and s <= path_s[-1] + 1e-6:
+                # A junction of some length whose ends meet (no bridge): its route
+                # positions all lie at one point of the curve.
+                s = path_s[-1] + 1e-6
+            route_pos.append(pos)
+            path_s.append(s)
+    return np.asarray(route_pos), np.asarray(path_s)
+
+
+__all__ = ["END_EXTENSION_M", "RouteReference", "build_reference", "crop_curve", "project_along"]
