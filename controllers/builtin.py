@@ -1,7 +1,9 @@
 """The controllers that ship with hwyeval: tables of factories and parameter classes.
 
 Each factory maps catalog options to a ready controller (or, for ``sumo``, to
-:class:`controllers.protocol.SumoDriverModel`); it is cheap (no compilation, no solver
+:class:`controllers.protocol.SumoDriverModel`, for ``recorded`` to
+:class:`controllers.baselines.recorded_driver.RecordedDriverModel`: not controllers, the
+run's dynamics drive the ego); it is cheap (no compilation, no solver
 set-up) and raises :class:`controllers.protocol.ConfigError` naming the dotted key of
 a bad option. :data:`PARAMETERS` names each controller's parameter dataclass (its
 options, for ``controllers.params.describe``). The registry reads both tables; this
@@ -15,17 +17,20 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from controllers.baselines.lane_keep import LaneKeepParams, make_lane_keep
+from controllers.baselines.recorded_driver import RecordedDriverModel, make_recorded_driver
 from controllers.baselines.sumo_driver import make_sumo_driver
 from controllers.protocol import Controller, SumoDriverModel
 from controllers.two_loop.controller import make_two_loop
 from controllers.two_loop.params import IpoptNmpcParams, TwoLoopParams
 
-ControllerFactory = Callable[[Mapping[str, Any]], Controller | SumoDriverModel]
+ControllerFactory = Callable[[Mapping[str, Any]],
+                             Controller | SumoDriverModel | RecordedDriverModel]
 
 
 def _factories() -> dict[str, ControllerFactory]:
     table: dict[str, ControllerFactory] = {
         "lane_keep": make_lane_keep,
+        "recorded": make_recorded_driver,
         "sumo": make_sumo_driver,
         "two_loop": make_two_loop,
     }
@@ -40,7 +45,7 @@ def _factories() -> dict[str, ControllerFactory]:
 
 FACTORIES: Mapping[str, ControllerFactory] = _factories()
 
-# name -> the parameter dataclass its options build (``sumo`` has no options).
+# name -> the parameter dataclass its options build (``sumo``, ``recorded`` have none).
 PARAMETERS: Mapping[str, type] = {
     "lane_keep": LaneKeepParams, "two_loop": TwoLoopParams, "ipopt_nmpc": IpoptNmpcParams,
 }

@@ -1,4 +1,5 @@
-"""Controller registry: name -> factory(options) -> Controller (or SumoDriverModel).
+"""Controller registry: name -> factory(options) -> Controller (or SumoDriverModel, or
+RecordedDriverModel: the ego driven by SUMO's driver or by its recording).
 
 The built-in factories come from :data:`controllers.builtin.FACTORIES` (read lazily,
 so that importing ``controllers`` stays light); :func:`register` adds a plug-in. A
@@ -36,6 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
+from controllers.baselines.recorded_driver import RecordedDriverModel
 from controllers.params import OptionDoc, build, describe
 from controllers.protocol import ConfigError, Controller, ControllerBase, SumoDriverModel
 
@@ -58,7 +60,7 @@ class ControllerPlugin:
     ``options -> Controller`` and the parameter dataclass its options build (None:
     no options), for :func:`options`."""
 
-    factory: Callable[[Mapping[str, Any]], Controller | SumoDriverModel]
+    factory: Callable[[Mapping[str, Any]], Controller | SumoDriverModel | RecordedDriverModel]
     parameters: type | None = None
 
 
@@ -248,7 +250,8 @@ def names() -> list[str]:
     return sorted(_all())
 
 
-def make(name: str, options: Mapping[str, Any] | None = None) -> Controller | SumoDriverModel:
+def make(name: str, options: Mapping[str, Any] | None = None
+         ) -> Controller | SumoDriverModel | RecordedDriverModel:
     """Build controller ``name`` with ``options`` (validated by its factory)."""
     factories = _all()
     if name not in factories:

@@ -598,8 +598,12 @@ def polyline_frenet(ref_xy_m: np.ndarray, x_m: np.ndarray, y_m: np.ndarray,
         seg = np.diff(ref, axis=0)
         length = np.hypot(seg[:, 0], seg[:, 1])
         cum = np.concatenate([[0.0], np.cumsum(length)])
-    hint = np.full(n, np.nan) if hint_s_m is None else _per_point(hint_s_m, n)
-    half = np.full(n, np.nan) if window_m is None else _per_point(window_m, n)
+    # writable C arrays always: a read-only one (a broadcast scalar) is another numba
+    # signature, compiled or loaded from the cache in every scenario process
+    hint = np.require(np.full(n, np.nan) if hint_s_m is None else _per_point(hint_s_m, n),
+                      np.float64, ("C", "W"))
+    half = np.require(np.full(n, np.nan) if window_m is None else _per_point(window_m, n),
+                      np.float64, ("C", "W"))
     s = np.empty(n)
     d = np.empty(n)
     _frenet_kernel(ref, cum, _block_circles(ref), x, y, hint, half, bool(track), s, d)

@@ -137,7 +137,8 @@ criteria = {{ {", ".join(f'{c} = "off"' for c in COMFORT_OFF)} }}
 name = "scripted_offset"
 speed_mps = 10.0
 shift_m = -3.5
-shift_start_m = 240.0
+# progress on the reference = route position (the reference starts where the lane does)
+shift_start_m = 245.2
 shift_length_m = 12.0
 
 # Straight into a car stalled in the ego's lane.

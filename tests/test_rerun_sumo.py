@@ -26,7 +26,8 @@ seed = 4
 name = "rrd_stall_traffic"
 net = "straight_3lane"
 ego = { lane = 1, pos_m = 80.0, speed_mps = 25.0 }
-stalled = [ { lane = 1, pos_m = 300.0 } ]
+# close enough that the pass puts an ellipse on it (the tests read one)
+stalled = [ { lane = 1, pos_m = 200.0 } ]
 traffic = { vehicles_per_hour = 1500, seed = 9, lanes = [0, 2] }
 """
 

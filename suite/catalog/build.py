@@ -22,25 +22,34 @@ from suite.catalog.report import Report
 from suite.catalog.specs import (
     ActorEventSpec,
     ActorSpec,
+    ControllerSpec,
     EgoSpec,
     RampTrafficSpec,
     ReplaySpec,
     Scenario,
     StalledSpec,
     TrafficSpec,
+    XfailSpec,
     sumo_step_problem,
 )
-from suite.catalog.tracks import TracksError, read_tracks
+from suite.catalog.tracks import (
+    TracksError,
+    TrackSpan,
+    ego_track_problem,
+    read_tracks,
+    track_spans,
+)
 from suite.catalog.traffic_checks import check_traffic
 
 __all__ = ["build_variant"]
 
 _Spec = TypeVar("_Spec", EgoSpec, StalledSpec, TrafficSpec, RampTrafficSpec, ActorSpec,
-                ActorEventSpec, ReplaySpec)
+                ActorEventSpec, ReplaySpec, XfailSpec)
 
-# resolved tracks file -> (size, mtime_ns, problem or None): a catalog whose sweep expands
-# one scenario many times reads its tracks file once
-_TRACKS_CHECKED: dict[Path, tuple[int, int, TracksError | None]] = {}
+# resolved tracks file -> (size, mtime_ns, problem or None, its track spans): a catalog
+# whose sweep expands one scenario many times reads its tracks file once (and keeps no
+# samples: a spans table per file, not the tracks)
+_TRACKS_CHECKED: dict[Path, tuple[int, int, TracksError | None, dict[str, TrackSpan]]] = {}
 
 # Scalar keys of a scenario and their defaults (MISSING: required).
 _SCALARS: tuple[tuple[str, Any], ...] = (
@@ -67,6 +76,8 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
     actors_raw = d.get("actors", [])
     actors = _actors(actors_raw, report)
     replay = _replay(d.get("replay", MISSING), catalog_path, report)
+    xfail = _spec(XfailSpec, d.get("xfail", MISSING), "xfail", report)  # a known failure
+    _check_recorded_driver(controller, d.get("replay", MISSING), report)
     if network is not None and route is not None:
         check_placements(network, route, d.get("ego"), stalled_raw, traffic,
                          bool(scalars.get("allow_shoulder", False)), report,
@@ -90,7 +101,7 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
             timeout_s=scalars["timeout_s"], friction=scalars["friction"],
             ramp_traffic=tuple(r for r in ramps if r is not None),
             actors=tuple(a for a in actors if a is not None),
-            sumo_step_s=scalars.get("sumo_step_s"), replay=replay)
+            sumo_step_s=scalars.get("sumo_step_s"), replay=replay, xfail=xfail)
     except SpecError as exc:  # pragma: no cover - the checks above mirror these
         report.add(exc.field, exc.expected, exc.got)
         return None
@@ -210,30 +221,54 @@ def _replay(raw: Any, catalog_path: Path, report: Report) -> ReplaySpec | None:
                    f"{catalog_path.parent}; not found: {path})", spec.tracks)
         return None
     path = path.resolve()
-    problem = _tracks_problem(path)
+    problem, spans = _tracks_problem(path)
     if problem is not None:
         report.add("replay.tracks", f"a valid tracks file: {problem.path}: {problem.key}: "
                    f"expected {problem.expected}", spec.tracks)
         return None
+    if spec.ego_track is not None:
+        ego_problem = ego_track_problem(spans, spec.ego_track)
+        if ego_problem is not None:
+            report.add("replay.ego_track", f"{ego_problem} in {path}", spec.ego_track)
+            return None
     return ReplaySpec(tracks=spec.tracks, mode=spec.mode,
                       handover_time_gap_s=spec.handover_time_gap_s,
-                      lane_changes=spec.lane_changes, tracks_path=path)
+                      lane_changes=spec.lane_changes, tracks_path=path,
+                      ego_track=spec.ego_track)
 
 
-def _tracks_problem(path: Path) -> TracksError | None:
-    """Why the tracks file at ``path`` is unusable (None: it is usable), cached by its
-    size and modification time."""
+RECORDED_DRIVER = "recorded"  # controllers.baselines.recorded_driver.NAME
+
+
+def _check_recorded_driver(controller: ControllerSpec | None, raw_replay: Any,
+                           report: Report) -> None:
+    """The ``recorded`` controller drives the ego's recorded track: the scenario must
+    name one (``replay.ego_track``); a bad one is reported at that key already."""
+    if controller is None or controller.name != RECORDED_DRIVER:
+        return
+    if isinstance(raw_replay, dict) and raw_replay.get("ego_track") is not None:
+        return
+    report.add("controller", "a controller the scenario can run: 'recorded' drives the "
+               "ego along its recorded track, and this scenario names none (replay.ego_track"
+               "; hwyeval import commonroad --ego-obstacle ID makes a recorded vehicle the "
+               "ego)", controller.name)
+
+
+def _tracks_problem(path: Path) -> tuple[TracksError | None, dict[str, TrackSpan]]:
+    """Why the tracks file at ``path`` is unusable (None: it is usable) and its tracks'
+    spans (empty when unusable), cached by its size and modification time."""
     st = path.stat()
     cached = _TRACKS_CHECKED.get(path)
     if cached is not None and cached[:2] == (st.st_size, st.st_mtime_ns):
-        return cached[2]
+        return cached[2], cached[3]
+    spans: dict[str, TrackSpan] = {}
     try:
-        read_tracks(path)
+        spans = track_spans(read_tracks(path))
         problem = None
     except TracksError as exc:
         problem = exc
-    _TRACKS_CHECKED[path] = (st.st_size, st.st_mtime_ns, problem)
-    return problem
+    _TRACKS_CHECKED[path] = (st.st_size, st.st_mtime_ns, problem, spans)
+    return problem, spans
 
 
 def _traffic(raw: Any, scalars: dict[str, Any], report: Report) -> TrafficSpec | None:

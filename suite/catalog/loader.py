@@ -114,12 +114,30 @@ class _Loader:
 
     def _check_top_level(self) -> None:
         for key in self.doc:
-            if key not in ("defaults", "scenario"):
-                self.err.add(key, "only the top-level keys 'defaults' and 'scenario'",
+            if key not in ("catalog", "defaults", "scenario"):
+                self.err.add(key, "only the top-level keys 'catalog', 'defaults' and "
+                             "'scenario'",
                              self.doc[key] if not isinstance(self.doc[key], dict) else key)
+        self._check_catalog_table()
         if self.controllers.registry_error and not self.controllers.explicit:
             self.err.add("controller", "an importable controller registry "
                          f"({self.controllers.registry_error})")
+
+    def _check_catalog_table(self) -> None:
+        """``[catalog]``: the catalog's own keys, ``name`` only (its identity in the
+        history, docs/history.md; read by :func:`reports.manifest.catalog_identity`)."""
+        table = self.doc.get("catalog", {})
+        if not isinstance(table, dict):
+            self.err.add("catalog", "a table [catalog] (with a name)", table)
+            return
+        for key, value in table.items():
+            if key != "name":
+                self.err.add(f"catalog.{key}", "only the key 'name' in [catalog]", key)
+            elif not isinstance(value, str) or not value.strip() \
+                    or len(value) > rules.MAX_NAME_LEN or value != value.strip():
+                self.err.add("catalog.name", f"a non-empty name of at most "
+                             f"{rules.MAX_NAME_LEN} characters, without surrounding spaces",
+                             value)
 
     def _defaults(self) -> dict[str, Any]:
         """The valid keys of ``[defaults]`` (the others reported)."""

@@ -22,10 +22,11 @@ from suite.catalog import rules
 from suite.catalog.errors import SpecError
 from suite.catalog.frozen import FrozenMap, thaw, thaw_map
 from suite.catalog.rules import Rule
+from suite.catalog.tracks import TRACK_ID_PREFIX
 
 __all__ = ["REPLAY_LANE_CHANGES", "REPLAY_MODES", "ActorEventSpec", "ActorSpec", "Catalog",
            "ControllerSpec", "EgoSpec", "RampTrafficSpec", "ReplaySpec", "Scenario",
-           "StalledSpec", "TrafficSpec", "default_sumo_step", "sumo_step_problem"]
+           "StalledSpec", "TrafficSpec", "XfailSpec", "default_sumo_step", "sumo_step_problem"]
 
 DEFAULT_SUMO_STEP_S = 0.1  # SUMO's own step by default: the field's usual 10 Hz
 
@@ -58,29 +59,81 @@ def _optional_sumo_step(v: Any) -> str | None:
     return None if v is None else rules.sumo_step(v)
 
 
+MAX_EGO_LATERAL_OFFSET_M = 5.0
+"""An ego start further than this [m] from its lane's centre line is in another lane:
+``ego.lane`` says which."""
+
+MAX_EGO_HEADING_RAD = 0.5 * math.pi
+"""An ego start must point along its lane: less than this [rad] from its direction."""
+
+
+def _lateral_offset(v: Any) -> str | None:
+    """None (unset), or a finite offset [m] of at most MAX_EGO_LATERAL_OFFSET_M."""
+    if v is None or (rules.is_number(v) and abs(v) <= MAX_EGO_LATERAL_OFFSET_M):
+        return None
+    return (f"a finite number in [-{MAX_EGO_LATERAL_OFFSET_M:g}, "
+            f"{MAX_EGO_LATERAL_OFFSET_M:g}] (m left of the lane's centre line; further is "
+            "another lane: set ego.lane)")
+
+
+def _heading(v: Any) -> str | None:
+    """None (unset), or a finite angle [rad] of magnitude below MAX_EGO_HEADING_RAD."""
+    if v is None or (rules.is_number(v) and abs(v) < MAX_EGO_HEADING_RAD):
+        return None
+    return (f"a finite number in (-{MAX_EGO_HEADING_RAD:.4f}, {MAX_EGO_HEADING_RAD:.4f}) "
+            "(rad from the lane's direction, counter-clockwise +: the ego points along "
+            "its lane)")
+
+
 @dataclass(frozen=True)
 class EgoSpec:
     """Ego start: lane index (0 = rightmost), route position, speed, cruise set-point.
 
     ``target_speed_mps`` defaults to ``speed_mps`` (NaN on input means "unset").
+
+    ``lateral_offset_m`` [m, left +] and ``heading_rad`` [rad, counter-clockwise +]: the
+    start pose in the lane's own frame (:mod:`suite.road.lane_pose`): the front bumper's
+    centre lies ``lateral_offset_m`` left of lane ``lane``'s centre line at route
+    position ``pos_m``, the ego heads ``heading_rad`` from the lane's direction there (a
+    recorded ego mid lane change). ``None`` (unset, both): the run starts the ego on its
+    reference path as it always did; one of them set, the other is 0.
     """
 
     lane: int
     pos_m: float
     speed_mps: float
     target_speed_mps: float = math.nan
+    lateral_offset_m: float | None = None
+    heading_rad: float | None = None
 
     _RULES: ClassVar[dict[str, Rule]] = {
         "lane": rules.integer(0), "pos_m": rules.num(0.0), "speed_mps": rules.num(0.0),
-        "target_speed_mps": rules.num(0.0),
+        "target_speed_mps": rules.num(0.0), "lateral_offset_m": _lateral_offset,
+        "heading_rad": _heading,
     }
     _REQUIRED: ClassVar[tuple[str, ...]] = ("lane", "pos_m", "speed_mps")
+    _POSE: ClassVar[tuple[str, ...]] = ("lateral_offset_m", "heading_rad")
 
     def __post_init__(self) -> None:
         if isinstance(self.target_speed_mps, float) and math.isnan(self.target_speed_mps):
             object.__setattr__(self, "target_speed_mps", self.speed_mps)
         rules.check_fields(self)
-        rules.as_float(self, "pos_m", "speed_mps", "target_speed_mps")
+        rules.as_float(self, "pos_m", "speed_mps", "target_speed_mps",
+                       *(k for k in self._POSE if getattr(self, k) is not None))
+
+    @property
+    def start_pose(self) -> tuple[float, float] | None:
+        """(lateral_offset_m, heading_rad) when either is set (the other 0), else
+        ``None``: the ego starts on its reference path."""
+        if self.lateral_offset_m is None and self.heading_rad is None:
+            return None
+        return (float(self.lateral_offset_m or 0.0), float(self.heading_rad or 0.0))
+
+    def as_dict(self) -> dict[str, Any]:
+        """Every field, the start-pose keys only when set (a scenario without them keeps
+        the dict, and the identity, it had)."""
+        return {k: v for k, v in _plain_dataclass(self).items()
+                if not (k in self._POSE and v is None)}
 
 
 @dataclass(frozen=True)
@@ -277,6 +330,15 @@ def _tracks_name(v: Any) -> str | None:
     return problem
 
 
+def _ego_track_id(v: Any) -> str | None:
+    """None (no recorded ego), or a track id as the tracks file has them."""
+    if v is None or (isinstance(v, str) and v.startswith(TRACK_ID_PREFIX)
+                     and len(v) > len(TRACK_ID_PREFIX)):
+        return None
+    return (f"the id of the recorded ego's track in the tracks file "
+            f"('{TRACK_ID_PREFIX}<id in the recording>')")
+
+
 @dataclass(frozen=True)
 class ReplaySpec:
     """Recorded traffic around the ego (:mod:`suite.world.replay`, docs/replay.md).
@@ -289,18 +351,26 @@ class ReplaySpec:
     [s], is below ``handover_time_gap_s`` [s] (> 0) with the ego in its lane or about to
     be, or whenever it is behind the ego in the ego's lane). ``lane_changes``: what a
     handed-over vehicle may change lanes for: ``"none"``, ``"strategic"`` (only to stay
-    on its route) or ``"all"`` (SUMO's default lane-change model)."""
+    on its route) or ``"all"`` (SUMO's default lane-change model).
+
+    ``ego_track``: the id of the ego's own recorded track in the tracks file (None: the
+    recording has no recorded ego). That track is never replayed as traffic (it would
+    sit on the ego); the controller ``recorded`` drives the ego along it. The loader
+    checks it exists, has two samples or more and starts at run time 0
+    (:func:`suite.catalog.tracks.ego_track_problem`)."""
 
     tracks: str
     mode: str = "replay"
     handover_time_gap_s: float = 1.0
     lane_changes: str = "strategic"
     tracks_path: Path | None = None
+    ego_track: str | None = None
 
     _RULES: ClassVar[dict[str, Rule]] = {
         "tracks": _tracks_name, "mode": _choice(REPLAY_MODES),
         "handover_time_gap_s": rules.num(0.0, strict=True),
         "lane_changes": _choice(tuple(REPLAY_LANE_CHANGES)),
+        "ego_track": _ego_track_id,
     }
     _REQUIRED: ClassVar[tuple[str, ...]] = ("tracks",)
 
@@ -320,10 +390,15 @@ class ReplaySpec:
         return int(REPLAY_LANE_CHANGES[self.lane_changes])
 
     def as_dict(self) -> dict[str, Any]:
-        """The catalog's keys (``tracks_path`` is machine-specific, as ``net_path``)."""
-        return {"tracks": self.tracks, "mode": self.mode,
-                "handover_time_gap_s": self.handover_time_gap_s,
-                "lane_changes": self.lane_changes}
+        """The catalog's keys (``tracks_path`` is machine-specific, as ``net_path``;
+        ``ego_track`` only when set, so that a scenario without a recorded ego keeps the
+        dict, and the identity, it had)."""
+        out: dict[str, Any] = {"tracks": self.tracks, "mode": self.mode,
+                               "handover_time_gap_s": self.handover_time_gap_s,
+                               "lane_changes": self.lane_changes}
+        if self.ego_track is not None:
+            out["ego_track"] = self.ego_track
+        return out
 
 
 @dataclass(frozen=True)
@@ -352,6 +427,32 @@ class ControllerSpec:
     def as_dict(self) -> dict[str, Any]:
         return {"name": self.name, "options": self.options_dict()}
 
+
+# ---------------------------------------------------------------- known failures (xfail)
+
+
+def _reason(v: Any) -> str | None:
+    return None if isinstance(v, str) and v.strip() else "a non-empty string: why it fails"
+
+
+@dataclass(frozen=True)
+class XfailSpec:
+    """A known failure (pytest's ``xfail``; :mod:`reports.expectation`): the scenario is
+    expected to fail its criteria, for ``reason``; with ``strict`` an unexpected pass
+    fails the night. It is no part of the test: it changes what a result means, not the
+    run."""
+
+    reason: str
+    strict: bool = False
+
+    _RULES: ClassVar[dict[str, Rule]] = {"reason": _reason, "strict": rules.boolean}
+    _REQUIRED: ClassVar[tuple[str, ...]] = ("reason",)
+
+    def __post_init__(self) -> None:
+        rules.check_fields(self)
+
+
+# ---------------------------------------------------------------- criteria
 
 CRITERION_OFF = "off"  # reports.metrics.criteria.OFF: switches a criterion off
 
@@ -394,6 +495,7 @@ class Scenario:
     actors: tuple[ActorSpec, ...] = ()
     sumo_step_s: float | None = None  # SUMO's step [s]; None: default_sumo_step(step_s)
     replay: ReplaySpec | None = None  # recorded traffic (suite.world.replay); None: none
+    xfail: XfailSpec | None = None  # a known failure; None: expected to pass
 
     _RULES: ClassVar[dict[str, Rule]] = {
         "name": rules.name_rule, "family": rules.name_rule,
@@ -422,6 +524,8 @@ class Scenario:
             raise SpecError("traffic", "a TrafficSpec or None", self.traffic)
         if self.replay is not None and not isinstance(self.replay, ReplaySpec):
             raise SpecError("replay", "a ReplaySpec or None", self.replay)
+        if self.xfail is not None and not isinstance(self.xfail, XfailSpec):
+            raise SpecError("xfail", "an XfailSpec or None", self.xfail)
         stalled = tuple(self.stalled)
         if any(not isinstance(s, StalledSpec) for s in stalled):
             raise SpecError("stalled", "a sequence of StalledSpec", self.stalled)
@@ -471,6 +575,8 @@ class Scenario:
         out = self._as_dict()
         if self.replay is not None:
             out["replay"] = self.replay.as_dict()
+        if self.xfail is not None:  # likewise: an unmarked scenario keeps its identity
+            out["xfail"] = _plain_dataclass(self.xfail)
         return out
 
     def _as_dict(self) -> dict[str, Any]:
@@ -481,7 +587,7 @@ class Scenario:
             "net": self.net,
             "net_path": str(self.net_path),
             "route": list(self.route),
-            "ego": _plain_dataclass(self.ego),
+            "ego": self.ego.as_dict(),
             "stalled": [_plain_dataclass(s) for s in self.stalled],
             "traffic": None if self.traffic is None else _plain_dataclass(self.traffic),
             "controller": self.controller.as_dict(),

@@ -25,11 +25,17 @@ The file's key-value metadata keeps ``hwyeval.tracks.version`` (``"1"``),
 :class:`Track` interpolates a pose at any run time inside its samples (linear in
 position, heading and speed: the heading is stored unwrapped, so no interpolation
 crosses the ±π seam); outside them the vehicle is not on the road.
+
+**The recorded ego.** One track of a file may be the ego's own recording (a scenario's
+``replay.ego_track``): the ``recorded`` controller drives the ego along it, and it is
+never replayed as traffic (:meth:`TrackSet.without`). :func:`ego_track_problem` says
+whether a track can be that: it exists, has at least two samples, and its first sample
+is at run time 0 (within :data:`EGO_TRACK_START_TOL_S`), where the run starts.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,11 +44,14 @@ import numpy.typing as npt
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-__all__ = ["TRACK_ID_PREFIX", "TRACKS_VERSION", "Track", "TrackPose", "TrackSet",
-           "TracksError", "read_tracks", "write_tracks"]
+__all__ = ["EGO_TRACK_START_TOL_S", "TRACK_ID_PREFIX", "TRACKS_VERSION", "Track", "TrackPose",
+           "TrackSet", "TrackSpan", "TracksError", "ego_track_problem", "read_tracks",
+           "track_spans", "write_tracks"]
 
 TRACKS_VERSION = "1"
 TRACK_ID_PREFIX = "rec_"
+EGO_TRACK_START_TOL_S = 1e-6
+"""The ego's track starts at run time 0 within this [s] (run times are (k - k0) dt)."""
 _META_VERSION = b"hwyeval.tracks.version"
 _META_DT = b"hwyeval.tracks.dt_s"
 _META_NOTES = b"hwyeval.tracks.notes"
@@ -153,6 +162,47 @@ class TrackSet:
 
     def by_id(self) -> dict[str, Track]:
         return {t.track_id: t for t in self.tracks}
+
+    def without(self, track_id: str | None) -> TrackSet:
+        """The set without track ``track_id`` (the recorded ego's, which the ego drives
+        and the replay must not put into traffic on top of it); itself for None."""
+        if track_id is None:
+            return self
+        return TrackSet(tuple(t for t in self.tracks if t.track_id != track_id), self.dt_s,
+                        self.notes)
+
+
+@dataclass(frozen=True)
+class TrackSpan:
+    """What the catalog checks of one track without keeping its samples: how many
+    samples, and the run times [s] of the first and last."""
+
+    samples: int
+    start_s: float
+    end_s: float
+
+
+def track_spans(track_set: TrackSet) -> dict[str, TrackSpan]:
+    """Every track's :class:`TrackSpan` by id."""
+    return {t.track_id: TrackSpan(int(t.time_s.shape[0]), t.start_s, t.end_s)
+            for t in track_set.tracks}
+
+
+def ego_track_problem(spans: Mapping[str, TrackSpan], track_id: str) -> str | None:
+    """Why track ``track_id`` (of a file whose :func:`track_spans` are ``spans``) cannot
+    be the recorded ego's (None: it can): it must exist, have at least two samples and
+    start at run time 0."""
+    span = spans.get(track_id)
+    if span is None:
+        ids = sorted(spans)
+        shown = ", ".join(ids[:12]) + (" ..." if len(ids) > 12 else "")
+        return f"the id of a track of the file ({shown or 'it has none'})"
+    if span.samples < 2:
+        return "a track of at least two samples (the ego drives between them)"
+    if abs(span.start_s) > EGO_TRACK_START_TOL_S:
+        return (f"a track whose first sample is at run time 0, where the run starts "
+                f"({track_id} starts at {span.start_s:g} s)")
+    return None
 
 
 def write_tracks(path: Path, track_set: TrackSet) -> None:

@@ -36,6 +36,7 @@ import reports.metrics  # noqa: F401
 import suite.rerun.log  # noqa: F401 - rerun
 import sumo_nets  # the bundled networks, and where SUMO is
 from controllers import registry
+from controllers.baselines.recorded_driver import RecordedDriverModel
 from controllers.behaviour.decision import EgoShape, LaneBehaviour
 from controllers.behaviour.types import EgoFrenet, LaneContext, LaneSlot, Traffic
 from controllers.path.frenet import FrenetPath
@@ -47,6 +48,7 @@ from controllers.protocol import (
     ScenarioContext,
     SumoDriverModel,
 )
+from reports.geometry import polyline_frenet
 from suite.exec.quick_exit import exit_without_teardown
 from suite.road.reference import offsets_to_polyline
 from suite.run import recorder
@@ -91,6 +93,7 @@ def warm_up(steps: int = 3) -> None:
     sumo_nets.sumo_home()  # imports the eclipse-sumo package (every run's SUMO start did)
     line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
     offsets_to_polyline(line, np.tile([0.0, 1.0], (3, 1)), line)  # the reference's kernel
+    polyline_frenet(line, line[:, 0], line[:, 1], track=True)  # TTC along the road (metrics)
     _warm_behaviour(steps)
     recorder.load_kernels()  # the neighbour rows
     vehicle = VehicleParams()
@@ -100,7 +103,7 @@ def warm_up(steps: int = 3) -> None:
                           np.array([10.0]), np.array([2.6]))
     for name in ("two_loop", "lane_keep"):
         controller = registry.make(name, {})
-        if isinstance(controller, SumoDriverModel):
+        if isinstance(controller, SumoDriverModel | RecordedDriverModel):
             continue
         controller.reset(ScenarioContext(reference, 3.5, 20.0, 0.02, vehicle, state))
         plant = SingleTrackPlant(vehicle, state)

@@ -1,5 +1,6 @@
-"""The EgoDynamics role: who moves the ego, a plant from the controller's commands or
-SUMO's own driver model.
+"""The EgoDynamics role: who moves the ego, a plant from the controller's commands,
+SUMO's own driver model, or the ego's own recording (:class:`suite.run.recorded.
+RecordedDynamics`, the controller ``recorded``).
 
 ``start`` puts the ego into the world and returns its first state and the first scene;
 ``advance`` applies one command (ignored when SUMO drives), steps the world and returns

@@ -22,6 +22,7 @@ from typing import ClassVar
 import numpy as np
 
 from controllers import registry
+from controllers.baselines.recorded_driver import RecordedDriverModel
 from controllers.behaviour.decision import EgoShape, LaneBehaviour
 from controllers.behaviour.protocol import Behaviour, CruiseBehaviour
 from controllers.path.frenet import FrenetPath
@@ -50,6 +51,8 @@ from reports.record import (
 from reports.record.run import publish_run_dir, remove_path, staging_dir
 from reports.record.verdict import Verdict
 from suite.catalog import Scenario
+from suite.catalog.specs import EgoSpec
+from suite.road.lane_pose import lane_frame
 from suite.road.lanes import LaneContextMap
 from suite.road.network import RoadNetwork
 from suite.road.record import route_lane_records
@@ -59,6 +62,13 @@ from suite.run.ego import EgoProjector
 from suite.run.info import scenario_info
 from suite.run.loop import Stages, run_loop
 from suite.run.options import RunOptions
+from suite.run.recorded import (
+    RecordedDrivesEgo,
+    RecordedDynamics,
+    RecordedPath,
+    recorded_track,
+    recorded_vehicle,
+)
 from suite.run.recorder import TraceRecorder
 from suite.run.safety import SafetyMonitor
 from suite.run.stop import ScenarioTimeout, StandardStop
@@ -107,32 +117,44 @@ def identity_of(options: RunOptions) -> dict[str, str]:
     return {CODE_KEY: options.code_sha256, CONTROLLER_KEY: options.controller_sha256}
 
 
-def initial_state(path: FrenetPath, front_pos_m: float, speed_mps: float,
-                  vehicle: VehicleParams, lateral_offset_m: float = 0.0) -> np.ndarray:
-    """(6,) plant state with the front bumper at ``front_pos_m`` along the reference path
-    and the CG ``lateral_offset_m`` to its left (the centre of the lane the catalog
-    asked for, where that is not the reference lane), heading along the path."""
-    s_cg = max(front_pos_m - vehicle.cg_to_front_bumper_m, 0.0)
-    x, y = path.point(s_cg)
-    gamma = float(path.gamma(s_cg))
-    x = float(x) - lateral_offset_m * math.sin(gamma)
-    y = float(y) + lateral_offset_m * math.cos(gamma)
-    return np.array([x, y, gamma, speed_mps, 0.0, 0.0])
+def initial_state(network: RoadNetwork, route: tuple[str, ...], ego: EgoSpec,
+                  path: FrenetPath, vehicle: VehicleParams, s_hint_m: float) -> np.ndarray:
+    """(6,) plant state at t = 0: the front bumper's centre on lane ``ego.lane`` at route
+    position ``ego.pos_m``, where SUMO has that lane position (the lane frame of
+    :func:`suite.road.lane_pose.lane_frame`: the point of the net's own lane shape, not
+    of the smoothed reference), ``ego.lateral_offset_m`` to the left of it; heading
+    ``ego.heading_rad`` from the lane's direction when the catalog gives a start pose,
+    else the reference path's heading where the bumper projects onto it (found near
+    ``s_hint_m``; the lane polyline's own direction steps at every vertex). The CG is
+    ``cg_to_front_bumper_m`` behind the bumper along the heading; speed ``ego.speed_mps``
+    along it, no side slip or yaw rate.
+
+    Why the lane and not the reference: the reference cuts a digitising kink's corner by
+    up to ``TubeParams.kink_tube_max_m``, and a position measured along it, offset to the
+    lane along its normal, lands up to ~0.1 m along the lane from where SUMO would put
+    ``pos_m`` (tests/test_placement.py)."""
+    frame = lane_frame(network, route, ego.pos_m, ego.lane)
+    if ego.start_pose is not None:
+        fx, fy, psi = frame.place(*ego.start_pose)
+    else:
+        fx, fy, _ = frame.place(0.0, 0.0)
+        s, _ = path.project(fx, fy, s_hint=s_hint_m)
+        psi = float(path.gamma(float(np.asarray(s).reshape(-1)[0])))
+    d = vehicle.cg_to_front_bumper_m
+    return np.array([fx - d * math.cos(psi), fy - d * math.sin(psi), psi, ego.speed_mps,
+                     0.0, 0.0])
 
 
-def start_lane_offset_m(lanes: LaneContextMap, lane_index: int, s_m: float) -> float:
-    """Lateral offset [m, left +] from the reference path of the centre of lane
-    ``lane_index`` (the catalog's ``ego.lane``) at path position ``s_m``, from the lane
-    context's offset profiles: 0 in the reference lane (a through lane: the reference
-    follows it); in a lane that ends (an acceleration lane, a dropped lane) the reference
-    is the nearest through lane, and the ego starts in its own lane beside it, where the
-    lane-end logic then takes it out."""
-    context = lanes.at(s_m)
-    slot = context.slots.get(lane_index)
-    if slot is None or lane_index == context.reference_index or not math.isfinite(
-            slot.offset_m):
-        return 0.0
-    return float(slot.offset_m)
+def ego_start_state(network: RoadNetwork, scenario: Scenario, vehicle: VehicleParams
+                    ) -> np.ndarray:
+    """(6,) the plant state at t = 0 exactly as a run of ``scenario`` starts it (the
+    reference and its Frenet path built as :func:`_build` builds them): for checks of the
+    placement against the net file (tests/placement_check.py)."""
+    ref = _reference(network, scenario)
+    path = FrenetPath.cached(np.asarray(ref.points_xy_m, dtype=np.float64),
+                             smoothing_m=REFERENCE_SMOOTHING_M)
+    return initial_state(network, tuple(scenario.route), scenario.ego, path, vehicle,
+                         ref.path_s(scenario.ego.pos_m))
 
 
 REFERENCE_SMOOTHING_M = 0.5  # the reference is already smooth (suite.road.reference)
@@ -164,8 +186,13 @@ def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: R
     network = RoadNetwork.load(scenario.net_path)
     route = tuple(scenario.route)
     driver = registry.make(scenario.controller.name, scenario.controller.options_dict())
-    controller: Controller = SumoDrivesEgo(driver) if isinstance(driver, SumoDriverModel) \
-        else driver
+    controller: Controller = (
+        SumoDrivesEgo(driver) if isinstance(driver, SumoDriverModel)
+        else RecordedDrivesEgo(driver, recorded_track(scenario))
+        if isinstance(driver, RecordedDriverModel) else driver)
+    track = controller.track if isinstance(controller, RecordedDrivesEgo) else None
+    if track is not None:  # the recorded ego has the recorded vehicle's box
+        vehicle = recorded_vehicle(vehicle, track.length_m, track.width_m)
     info = scenario_info(scenario, options.catalog_name, vehicle, controller.parameters(),
                          options.content_sha256, identity_of(options))
     ref = _reference(network, scenario)
@@ -177,17 +204,18 @@ def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: R
     context = ScenarioContext(reference, lane_width, target, dt, vehicle,
                               np.zeros(6), reference_smoothing_m=REFERENCE_SMOOTHING_M)
     path = context.reference_path()
-    s_front = ref.path_s(scenario.ego.pos_m)
     lanes = LaneContextMap(network, route, ref, path)
-    state0 = initial_state(path, s_front, scenario.ego.speed_mps, vehicle,
-                           start_lane_offset_m(lanes, scenario.ego.lane, s_front))
+    state0 = initial_state(network, route, scenario.ego, path, vehicle,
+                           ref.path_s(scenario.ego.pos_m))
     controller.reset(replace(context, initial_state=state0))
     plant_driven = not isinstance(driver, SumoDriverModel)
     world = SumoWorld(scenario, network, vehicle, run_dir / "sumo", externally_driven=plant_driven)
     projector = EgoProjector(path)
-    dynamics: EgoDynamics = (PlantDynamics(SingleTrackPlant(vehicle, state0), world, projector, dt)
-                             if plant_driven else
-                             SumoDrivenDynamics(world, projector, vehicle, dt, state0))
+    dynamics: EgoDynamics = (
+        RecordedDynamics(RecordedPath.from_track(track, dt), world, projector, vehicle)
+        if track is not None else
+        PlantDynamics(SingleTrackPlant(vehicle, state0), world, projector, dt)
+        if plant_driven else SumoDrivenDynamics(world, projector, vehicle, dt, state0))
     policy = controller.obstacle_policy
     behaviour: Behaviour = CruiseBehaviour() if policy is None else LaneBehaviour(
         path, policy, EgoShape(vehicle.length_m, vehicle.width_m, scenario.allow_shoulder),

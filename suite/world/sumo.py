@@ -219,8 +219,9 @@ class SumoWorld:
             return
         dt = self.rate.world_step_s
         steps = int(math.ceil(float(self.scenario.duration_s) / dt)) + 2
-        self._replay = ReplayAgents(spec, read_tracks(spec.tracks_path), dt, steps,
-                                    tuple(self.scenario.route))
+        # the recorded ego's own track (replay.ego_track) is the ego, never traffic
+        self._replay = ReplayAgents(spec, read_tracks(spec.tracks_path).without(spec.ego_track),
+                                    dt, steps, tuple(self.scenario.route))
         self._replay.prepare(ls)
         self._replay_origin_s = self._time() + dt
 

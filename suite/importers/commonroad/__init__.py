@@ -2,7 +2,9 @@
 (docs/recorded.md).
 
 Per file ``<stem>``: ``<stem>.net.xml`` (:mod:`.net_build`, from the lanelet rows of
-:mod:`.lanelets`), ``<stem>.tracks.parquet`` (:mod:`.tracks`, written with
+:mod:`.lanelets`; wedges and short skewed links become junction links,
+:mod:`.connectors`; widths and bound pairing in :mod:`.geometry`),
+``<stem>.tracks.parquet`` (:mod:`.tracks`, written with
 :func:`suite.catalog.tracks.write_tracks`), its scenario in ``catalog.toml``
 (:mod:`.catalog_out`); the checks of :mod:`.checks` (time step, road membership) and of
 :mod:`.reader` (uncertain states). :mod:`.pipeline` runs the stages; :mod:`.reader` is

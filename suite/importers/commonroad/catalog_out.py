@@ -6,17 +6,19 @@ hwyeval's own :class:`~suite.road.network.RoadNetwork`), one scenario per file, 
   the most lanes (to the upstream extension). Downstream: among every path to a net end,
   the first that reaches a goal edge (the goal's lanelets, or the edges its goal
   positions lie on), then with the fewest link edges, then the longest.
-* **Ego.** CommonRoad's initial position is the vehicle centre c; the catalog's
-  ``ego.pos_m`` is the front bumper along the route: pos = s(c) + L/2, with s(c) the
-  route position of c's projection on the nearest route lane (edge start + the
-  projection's fraction of the lane shape x the edge length: SUMO's lane positions) and
-  L = :class:`controllers.plant.vehicle_model.VehicleParams`'s ``length_m`` (the box of
-  hwyeval's ego; ``suite.run.runner.initial_state`` puts the box centre at pos - L/2).
-  Its lane is the lane, of the edge at pos, nearest the front bumper point
-  c + L/2 (cos h, sin h). The catalog has no lateral offset: the ego starts on its
-  lane's centre line; c's signed offset from the centre line of the route lane nearest
-  it (left > 0) is reported (:func:`ego_offset_note`, a warning above
-  :data:`LATERAL_WARN_M`).
+* **Ego.** CommonRoad's initial state is the vehicle centre c heading h at speed v;
+  hwyeval's ego is a box of length L = :class:`controllers.plant.vehicle_model.
+  VehicleParams`'s ``length_m``, so its front bumper's centre is F = c + L/2 (cos h,
+  sin h). The catalog's ego is F's pose in its lane's frame (:mod:`suite.road.lane_pose`):
+  ``pos_m`` its route position (SUMO's lane positions: edge start + arc length on the
+  lane shape x edge length / shape length), ``lane`` the lane, of the edge at pos,
+  nearest F, ``lateral_offset_m`` F's offset from that lane's centre line (left > 0),
+  ``heading_rad`` h minus the lane's direction; found by
+  :func:`suite.road.lane_pose.pose_in_lane` from F's projection on the nearest route
+  lane. The run places the ego there (``suite.run.runner.initial_state``): an ego
+  recorded mid lane change starts mid lane change. c's signed offset from the centre
+  line of the route lane nearest it is noted (:func:`ego_offset_note`, a warning above
+  :data:`LATERAL_WARN_M`: the run starts off its lane's centre).
 * **Stalled.** A static obstacle on a route lane becomes ``stalled`` with its box
   (pos = s(centre) + length/2, as the ego); elsewhere it is dropped with a note.
 * **Files.** Each imported file leaves ``<stem>.scenario.json`` (its scenario table and
@@ -31,16 +33,18 @@ import json
 import math
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from controllers.plant.vehicle_model import VehicleParams
+from suite.catalog.specs import MAX_EGO_HEADING_RAD, MAX_EGO_LATERAL_OFFSET_M
 from suite.catalog.toml_write import dumps_catalog
 from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import project
 from suite.importers.commonroad.net_build import BuiltNet
 from suite.importers.commonroad.records import EgoStart, ObstacleRecord
+from suite.road.lane_pose import LanePose, pose_in_lane
 from suite.road.network import RoadNetwork
 
 __all__ = ["CATALOG_NAME", "FRAGMENT_SUFFIX", "LATERAL_WARN_M", "RoutePoint", "choose_route",
@@ -54,15 +58,22 @@ STEP_S = 0.02
 DEFAULT_CONTROLLER = "two_loop"
 MAX_PATHS = 20000
 LATERAL_WARN_M = 0.5
-"""An ego centre farther than this [m] from its lane's centre line is a warning (the
-catalog starts it on the centre line)."""
+"""An ego centre farther than this [m] from its lane's centre line is a warning: the run
+starts it there, off its lane's centre (mid lane change?)."""
+
+ALONG_TOL_M = 0.05
+"""The ego's front bumper must lie this close [m] to the normal of its lane frame at the
+catalog's ``pos_m`` (:func:`suite.road.lane_pose.pose_in_lane` converged; it does to
+1e-4 m but where a lane's shape jumps at a junction): else the file is refused rather
+than started elsewhere than recorded."""
 
 
 @dataclass(frozen=True)
 class RoutePoint:
     """A point projected on the route: edge, lane index, route position [m], distance
     from that lane's centre line, the lane's width and the signed lateral offset from
-    the centre line (left of the direction of travel > 0) [m]."""
+    the centre line (left of the direction of travel > 0) [m]; for the ego, its heading
+    relative to the lane [rad, counter-clockwise +]."""
 
     edge_id: str
     lane: int
@@ -70,6 +81,7 @@ class RoutePoint:
     distance_m: float
     width_m: float
     lateral_m: float = 0.0
+    heading_rad: float = 0.0
 
 
 def scenario_name(stem: str) -> str:
@@ -142,32 +154,55 @@ def _lane_at(network: RoadNetwork, route: Sequence[str], pos_m: float, x_m: floa
 
 def ego_table(path: str, network: RoadNetwork, route: Sequence[str], ego: EgoStart,
               vehicle: VehicleParams) -> tuple[dict[str, Any], RoutePoint]:
-    """The catalog's ``ego`` table (front bumper, lane at that position, speeds)."""
+    """The catalog's ``ego`` table (the front bumper's pose in its lane's frame, speeds;
+    module docstring) and the ego centre's place on the route (with the heading relative
+    to its lane)."""
+    element = f"planningProblem {ego.problem_id} initialState"
     centre = locate_on_route(network, route, ego.x_m, ego.y_m)
     if centre.distance_m > 0.5 * centre.width_m:
-        raise ImportFailure(path, f"planningProblem {ego.problem_id} initialState",
-                            f"the ego is {centre.distance_m:.2f} m from the nearest lane of "
-                            "its route")
-    pos = centre.pos_m + 0.5 * vehicle.length_m
+        raise ImportFailure(path, element, f"the ego is {centre.distance_m:.2f} m from the "
+                            "nearest lane of its route")
+    half = 0.5 * vehicle.length_m
+    fx = ego.x_m + half * math.cos(ego.heading_rad)
+    fy = ego.y_m + half * math.sin(ego.heading_rad)
     total = network.route_length_m(route)
-    if not pos < total:
-        raise ImportFailure(path, f"planningProblem {ego.problem_id} initialState",
-                            "the ego is at the end of the road")
-    fx = ego.x_m + 0.5 * vehicle.length_m * math.cos(ego.heading_rad)
-    fy = ego.y_m + 0.5 * vehicle.length_m * math.sin(ego.heading_rad)
-    lane = _lane_at(network, route, pos, fx, fy)
+    first = locate_on_route(network, route, fx, fy).pos_m
+    if not centre.pos_m + half < total or not first < total:
+        raise ImportFailure(path, element, "the ego is at the end of the road")
+    pose = pose_in_lane(network, route, first, lambda p: _lane_at(network, route, p, fx, fy),
+                        fx, fy, ego.heading_rad)
+    problem = _pose_problem(pose)
+    if problem is not None:
+        raise ImportFailure(path, element, problem)
     speed = round(float(ego.speed_mps), 4)
-    return ({"lane": lane, "pos_m": round(pos, 3), "speed_mps": speed,
-             "target_speed_mps": speed}, centre)
+    table = {"lane": pose.lane, "pos_m": round(pose.pos_m, 3), "speed_mps": speed,
+             "target_speed_mps": speed, "lateral_offset_m": round(pose.lateral_m, 4),
+             "heading_rad": round(pose.heading_rad, 5)}
+    return table, replace(centre, heading_rad=pose.heading_rad)
+
+
+def _pose_problem(pose: LanePose) -> str | None:
+    """Why the ego's pose cannot be a catalog's (None: it can)."""
+    if abs(pose.residual_m) > ALONG_TOL_M:
+        return (f"its front bumper cannot be placed on lane {pose.lane} ({pose.residual_m:.3f} "
+                "m along the lane from the nearest point of the route)")
+    if abs(pose.lateral_m) > MAX_EGO_LATERAL_OFFSET_M:
+        return (f"its front bumper is {pose.lateral_m:+.2f} m from the centre line of lane "
+                f"{pose.lane} (at most {MAX_EGO_LATERAL_OFFSET_M:g} m)")
+    if not abs(pose.heading_rad) < MAX_EGO_HEADING_RAD:
+        return (f"it heads {math.degrees(pose.heading_rad):+.1f} deg from its lane's "
+                "direction (not along the road)")
+    return None
 
 
 def ego_offset_note(centre: RoutePoint) -> str:
-    """The note on the ego's lateral offset (module docstring), ``WARNING`` above
-    :data:`LATERAL_WARN_M`."""
+    """The note on the ego's lateral offset and heading (module docstring), ``WARNING``
+    above :data:`LATERAL_WARN_M`."""
     side = "left" if centre.lateral_m > 0 else "right"
     text = (f"ego lateral offset {centre.lateral_m:+.2f} m ({abs(centre.lateral_m):.2f} m "
-            f"{side} of the centre line of {centre.edge_id} lane {centre.lane}): the run "
-            "starts it on the centre line")
+            f"{side} of the centre line of {centre.edge_id} lane {centre.lane}), heading "
+            f"{centre.heading_rad:+.4f} rad from its lane: the run starts it there "
+            "(ego.lateral_offset_m, ego.heading_rad)")
     return f"WARNING {text}" if abs(centre.lateral_m) > LATERAL_WARN_M else text
 
 

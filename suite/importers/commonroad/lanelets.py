@@ -7,11 +7,14 @@ Steps:
 2. The ego's road: every lanelet connected to it by successor, predecessor or
    same-direction adjacency (the opposite carriageway and unconnected roads are dropped,
    with a note; dangling references are dropped, with a note).
-3. Cuts (:mod:`~suite.importers.commonroad.split`): a lanelet beside two or more
+3. Connectors (:mod:`~suite.importers.commonroad.connectors`): wedges and short skewed
+   lanelets that join lanes without being one become junction links from their
+   predecessors to their successors (a note lists them).
+4. Cuts (:mod:`~suite.importers.commonroad.split`): a lanelet beside two or more
    consecutive lanelets, or whose neighbour row is split elsewhere, is cut where its
    neighbours start and end, so that side-by-side lanelets cover the same stretch; the
    pieces are ``<id>``, ``<id>_1``, ... The ego's lanelet is then the piece it is on.
-4. Rows: from each lanelet with no same-direction right neighbour, walk left along
+5. Rows: from each lanelet with no same-direction right neighbour, walk left along
    ``adjacentLeft``; every lanelet of the road must be in exactly one row (adjacency
    that disagrees between the two neighbours, a cycle, a lanelet in two rows, a row
    whose lanelets point in opposite directions, a successor in its own row, and a
@@ -26,6 +29,7 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
+from suite.importers.commonroad.connectors import bridge_connectors
 from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import angle_diff_rad, polyline_length_m, project
 from suite.importers.commonroad.records import EgoStart, LaneletRecord, RecordedFile
@@ -183,8 +187,10 @@ def build_road(rec: RecordedFile) -> RoadRows:
                      f"lanelet {dangling[0][0]} -> {dangling[0][1]})")
     ego = _ego_lanelet(path, lanelets, rec.ego)
     keep = _component(lanelets, ego)
-    split = split_road(path, {lid: lanelets[lid] for lid in sorted(keep)},
-                       max(lanelets) + 1)
+    bridged = bridge_connectors({lid: lanelets[lid] for lid in sorted(keep)})
+    if bridged.note:
+        notes.append(bridged.note)
+    split = split_road(path, bridged.lanelets, max(lanelets) + 1)
     road = split.lanelets
     if split.cuts:
         notes.append(f"{split.cut_lanelets} lanelets cut at their neighbours' ends "

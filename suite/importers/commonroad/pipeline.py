@@ -13,7 +13,7 @@ from pathlib import Path
 
 from controllers.plant.vehicle_model import VehicleParams
 from suite.catalog.tracks import TrackSet, write_tracks
-from suite.importers.commonroad import catalog_out
+from suite.importers.commonroad import catalog_out, recorded_ego
 from suite.importers.commonroad.checks import LaneShape, StepCheck, StepParams, check_step
 from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import project
@@ -37,14 +37,16 @@ class ImportParams:
     net: NetParams = field(default_factory=NetParams)
     step: StepParams = field(default_factory=StepParams)
     vehicle: VehicleParams = field(default_factory=VehicleParams)
+    ego_obstacle: int | None = None  # --ego-obstacle: this recorded vehicle is the ego
 
 
 @dataclass(frozen=True)
 class FileResult:
     """What one file gave: outputs, net size, tracks kept and dropped (by reason), the
     step check, uncertain states, the ego's lane and position [m], the ego centre's
-    signed lateral offset from its lane's centre line [m] (left > 0; the run starts it
-    on the centre line), notes, wall time [s]."""
+    signed lateral offset from its lane's centre line [m] (left > 0; the catalog's
+    ``ego.lateral_offset_m`` / ``heading_rad`` start the run there), notes, wall time
+    [s]."""
 
     source: Path
     name: str
@@ -66,6 +68,7 @@ class FileResult:
     duration_s: float
     notes: tuple[str, ...]
     wall_s: float
+    ego_track: str | None = None  # the recorded ego's track id (recorded_ego), if any
 
 
 @dataclass(frozen=True)
@@ -123,14 +126,24 @@ def _duration_s(rec: RecordedFile, ts: TrackSet, dt_s: float) -> float:
 def import_file(source: Path, out_dir: Path, params: ImportParams) -> FileResult:
     """Import one file into ``out_dir`` (module docstring)."""
     t0 = time.perf_counter()
+    rec, recorded = recorded_ego.resolve(read_file(source), params.ego_obstacle)
+    with recorded_ego.blamed(recorded):
+        return _import(source, out_dir, params, rec, recorded, t0)
+
+
+def _import(source: Path, out_dir: Path, params: ImportParams, rec: RecordedFile,
+            recorded: recorded_ego.RecordedEgo | None, t0: float) -> FileResult:
+    """:func:`import_file` of the read file ``rec`` (its ego start and goal already set
+    for its recorded ego, if it has one)."""
     stem = source.name[:-4] if source.name.lower().endswith(".xml") else source.stem
-    rec = read_file(source)
     road = build_road(rec)
     speeds = lane_speeds(road, rec, params.net.speed_limit_mps)
     plan = plan_net(road, params.net, rec.path, speeds)
     step = check_step(rec.obstacles, rec.dt_s, params.step)
     dt_s = step.dt_s
-    selection = select_tracks(rec.obstacles, _lane_shapes(plan), rec.ego.time_step, dt_s)
+    selection, ego_track = recorded_ego.split(
+        select_tracks(rec.obstacles, _lane_shapes(plan), rec.ego.time_step, dt_s), rec,
+        recorded, dt_s)
     net_path = out_dir / f"{stem}.net.xml"
     net = build_net(plan, params.net, net_path, rec.path)
     try:
@@ -150,8 +163,10 @@ def import_file(source: Path, out_dir: Path, params: ImportParams) -> FileResult
              *rec.notes, *stalled_notes,
              *(f"netconvert: {w}" for w in net.warnings)]
     notes.insert(1, f"{len(selection.tracks)} recorded vehicles kept")
-    ts = TrackSet(selection.tracks, dt_s, tuple(notes))
-    duration = _duration_s(rec, ts, dt_s)
+    notes[2:2] = recorded_ego.notes(recorded, ego_track)
+    ts = TrackSet((*selection.tracks, *recorded_ego.tracks(ego_track)), dt_s, tuple(notes))
+    duration = (_duration_s(rec, ts, dt_s) if ego_track is None
+                else recorded_ego.duration_s(ego_track))
     tracks_path = out_dir / f"{stem}.tracks.parquet"
     write_tracks(tracks_path, ts)
     name = catalog_out.scenario_name(stem)
@@ -160,7 +175,9 @@ def import_file(source: Path, out_dir: Path, params: ImportParams) -> FileResult
                                 "step_s": catalog_out.STEP_S}
     if stalled:
         table["stalled"] = stalled
-    table["replay"] = {"tracks": tracks_path.name, "mode": "replay"}
+    table["replay"] = {"tracks": tracks_path.name, "mode": "replay",
+                       **recorded_ego.replay_keys(ego_track)}
+    table.update(recorded_ego.scenario_keys(ego_track))
     catalog_out.write_fragment(out_dir, stem, name, table, notes, source.name)
     n_lanes = sum(len(e.lanes_xy_m) for e in net.edges.values())
     return FileResult(source, name, net_path, tracks_path, len(net.edges), n_lanes,
@@ -168,7 +185,8 @@ def import_file(source: Path, out_dir: Path, params: ImportParams) -> FileResult
                       len(selection.tracks), selection.dropped, step, rec.uncertain.states,
                       len(stalled), int(ego["lane"]), float(ego["pos_m"]),
                       round(centre.lateral_m, 3), duration,
-                      tuple(notes), time.perf_counter() - t0)
+                      tuple(notes), time.perf_counter() - t0,
+                      None if ego_track is None else ego_track.track_id)
 
 
 def import_files(sources: Sequence[Path], out_dir: Path,

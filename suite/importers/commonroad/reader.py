@@ -15,6 +15,12 @@ Speed limits: a traffic sign element whose commonroad-io id (``TrafficSignIDGerm
 ``MAX_SPEED`` gives its first ``additionalValue`` in m/s (CommonRoad's unit); a lanelet
 takes the lowest such sign it references. Values outside (0, :data:`MAX_PLAUSIBLE_MPS`]
 or not numbers are ignored, with a warning note.
+
+Bounds: CommonRoad's centre line is the mean of the i-th left and i-th right vertex, which
+is the centre only where those vertices are opposite (exiD's are not). Bounds whose
+interior vertex pairs lie more than ``PAIR_SKEW_TOL_M`` apart along the road, or that have
+different vertex counts, are re-paired (:func:`~suite.importers.commonroad.geometry.
+pair_bounds`; a note names them); others are kept as they are.
 """
 
 from __future__ import annotations
@@ -27,8 +33,10 @@ from typing import Any
 import numpy as np
 
 from suite.importers.commonroad.errors import ImportFailure
+from suite.importers.commonroad.geometry import PAIR_SKEW_TOL_M, pair_bounds, pair_skew_m
 from suite.importers.commonroad.records import (
     EgoStart,
+    FloatArray,
     LaneletRecord,
     ObstacleRecord,
     RecordedFile,
@@ -178,12 +186,25 @@ def _speed_signs(network: Any) -> tuple[dict[int, float], list[str]]:
     return out, notes
 
 
-def _lanelet(ll: Any, limits: dict[int, float]) -> LaneletRecord:
+def _bounds(ll: Any) -> tuple[FloatArray, FloatArray, bool]:
+    """The lanelet's left and right bounds (n, 2) [m] with opposite vertices, and
+    whether they had to be re-paired (module docstring)."""
     left = np.asarray(ll.left_vertices, dtype=np.float64).reshape(-1, 2)
     right = np.asarray(ll.right_vertices, dtype=np.float64).reshape(-1, 2)
-    if left.shape != right.shape or left.shape[0] < 2:
+    if min(left.shape[0], right.shape[0]) < 2:
         raise ValueError(f"left/right bounds of {left.shape[0]}/{right.shape[0]} points "
-                         "(expected the same number, at least 2)")
+                         "(expected at least 2 each)")
+    if not (np.all(np.isfinite(left)) and np.all(np.isfinite(right))):
+        raise ValueError("a bound vertex that is not a finite number")
+    if pair_skew_m(left, right) <= PAIR_SKEW_TOL_M:
+        return left, right, False
+    left, right = pair_bounds(left, right)
+    return left, right, True
+
+
+def _lanelet(ll: Any, limits: dict[int, float]) -> tuple[LaneletRecord, bool]:
+    """The record of one lanelet, and whether its bounds were re-paired."""
+    left, right, repaired = _bounds(ll)
     same_left = bool(ll.adj_left_same_direction) if ll.adj_left is not None else False
     same_right = bool(ll.adj_right_same_direction) if ll.adj_right is not None else False
     return LaneletRecord(
@@ -195,7 +216,7 @@ def _lanelet(ll: Any, limits: dict[int, float]) -> LaneletRecord:
         predecessors=tuple(int(p) for p in ll.predecessor or ()),
         types=tuple(sorted(str(getattr(t, "value", t)) for t in ll.lanelet_type or ())),
         speed_limit_mps=min((limits[int(i)] for i in ll.traffic_signs or () if int(i) in limits),
-                            default=None))
+                            default=None)), repaired
 
 
 def _goal(problem: Any) -> tuple[tuple[int, ...], tuple[tuple[float, float], ...], int | None]:
@@ -257,13 +278,22 @@ def read_file(path: Path) -> RecordedFile:
     if not scenario.lanelet_network.lanelets or not getattr(
             problems, "planning_problem_dict", None):
         _precheck(path)  # parses the file again: only when something is missing
-    limits, sign_notes = _speed_signs(scenario.lanelet_network)
+    limits, read_notes = _speed_signs(scenario.lanelet_network)
     lanelets = []
+    repaired = []
     for ll in scenario.lanelet_network.lanelets:
         try:
-            lanelets.append(_lanelet(ll, limits))
+            lanelet, was_repaired = _lanelet(ll, limits)
         except (ValueError, TypeError) as exc:
             raise ImportFailure(name, f"lanelet {ll.lanelet_id}", str(exc)) from exc
+        lanelets.append(lanelet)
+        if was_repaired:
+            repaired.append(lanelet.lanelet_id)
+    if repaired:
+        read_notes.append(f"{len(repaired)} lanelets' bounds re-paired (their i-th left and "
+                          f"right vertices were more than {PAIR_SKEW_TOL_M:g} m apart along "
+                          f"the road): lanelets {', '.join(map(str, repaired[:20]))}"
+                          f"{' ...' if len(repaired) > 20 else ''}")
     obstacles = []
     n_states = n_obstacles = 0
     for static, group in ((False, scenario.dynamic_obstacles), (True, scenario.static_obstacles)):
@@ -281,5 +311,5 @@ def read_file(path: Path) -> RecordedFile:
         raise ImportFailure(name, "commonRoad timeStepSize", f"expected > 0, got {dt_s}")
     country = str(getattr(getattr(scenario, "scenario_id", None), "country_id", "") or "ZAM")
     return RecordedFile(name, dt_s, tuple(lanelets), tuple(obstacles), ego,
-                        UncertainCount(n_states, n_obstacles), (*notes, *sign_notes),
+                        UncertainCount(n_states, n_obstacles), (*notes, *read_notes),
                         country.upper())

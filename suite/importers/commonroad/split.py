@@ -14,13 +14,14 @@ highD-like files with lanelets of different lengths), or its neighbour changes a
    lateral offset d with 0.25 w <= d <= 2.5 w, w the mean of their widths; otherwise
    the adjacency is inconsistent (an error naming the lanelet).
 2. **Cuts.** Each lanelet is cut at the arc length s of its centre line where a
-   partner's start or end projects, when :data:`CUT_MARGIN_M` < s < length -
-   :data:`CUT_MARGIN_M`. A cut at s interpolates both bounds at the same parameter of
-   the vertex pair segment holding s (the centre line is the mean of the bounds, so the
-   pieces' centre lines are the original's, joined end to end). Pairs of pieces are the
-   pairs of the original lanelets' pieces that still overlap; cutting repeats until no
-   cut is left (a lanelet beside a cut lanelet can need a cut in turn), at most
-   :data:`MAX_ROUNDS` rounds.
+   partner's start or end projects (its anchor, where it has one: a lanelet opening or
+   ending at a connector, :mod:`~suite.importers.commonroad.connectors`), when
+   :data:`CUT_MARGIN_M` < s < length - :data:`CUT_MARGIN_M`. A cut at s interpolates
+   both bounds at the same parameter of the vertex pair segment holding s (the centre
+   line is the mean of the bounds, so the pieces' centre lines are the original's,
+   joined end to end). Pairs of pieces are the pairs of the original lanelets' pieces
+   that still overlap; cutting repeats until no cut is left (a lanelet beside a cut
+   lanelet can need a cut in turn), at most :data:`MAX_ROUNDS` rounds.
 3. **Relations.** The first piece keeps the lanelet's id and predecessors; the last
    piece takes its successors; piece k is the successor of piece k-1; references
    elsewhere (another lanelet's predecessor list naming a cut lanelet) go to its last
@@ -39,7 +40,8 @@ from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import polyline_length_m, project, resample
 from suite.importers.commonroad.records import FloatArray, LaneletRecord
 
-__all__ = ["CUT_MARGIN_M", "MAX_ROUNDS", "SplitRoad", "cut_lanelet", "split_road"]
+__all__ = ["CUT_MARGIN_M", "MAX_ROUNDS", "SplitRoad", "cut_lanelet", "lies_beside", "overlap_m",
+           "split_road"]
 
 CUT_MARGIN_M = 1.0
 """A neighbour's end projecting closer than this [m] to a lanelet's end cuts nothing
@@ -66,7 +68,7 @@ class SplitRoad:
             raise ValueError(f"{self.cuts} cuts of {self.cut_lanelets} lanelets")
 
 
-def _overlap_m(right: LaneletRecord, left: LaneletRecord) -> tuple[float, float]:
+def overlap_m(right: LaneletRecord, left: LaneletRecord) -> tuple[float, float]:
     """The stretch [a, b] of ``right``'s centre line [m] that ``left`` lies beside (the
     projections of its centre line's ends)."""
     rc, lc = right.centre_xy_m, left.centre_xy_m
@@ -75,10 +77,10 @@ def _overlap_m(right: LaneletRecord, left: LaneletRecord) -> tuple[float, float]
     return min(a, b), max(a, b)
 
 
-def _beside(right: LaneletRecord, left: LaneletRecord) -> bool:
+def lies_beside(right: LaneletRecord, left: LaneletRecord) -> bool:
     """Whether ``left`` lies left of ``right`` along more than the margin (module
     docstring, step 1)."""
-    a, b = _overlap_m(right, left)
+    a, b = overlap_m(right, left)
     if b - a <= CUT_MARGIN_M:
         return False
     rc = right.centre_xy_m
@@ -106,7 +108,7 @@ def _walk(road: dict[int, LaneletRecord], base: LaneletRecord, start: int,
             if nxt in found or nxt not in road or nxt == base.lanelet_id:
                 continue
             cand = road[nxt]
-            if _beside(base, cand) if on_left else _beside(cand, base):
+            if lies_beside(base, cand) if on_left else lies_beside(cand, base):
                 found.add(nxt)
                 todo.append(nxt)
     return found
@@ -122,7 +124,7 @@ def _pairs(path: str, road: dict[int, LaneletRecord]) -> set[Pair]:
             referenced.add((ll.adj_right, lid))
     pairs: set[Pair] = set()
     for r, lf in sorted(referenced):
-        if r == lf or not _beside(road[r], road[lf]):
+        if r == lf or not lies_beside(road[r], road[lf]):
             raise ImportFailure(path, f"lanelet {lf}", f"inconsistent adjacency: it is the "
                                 f"left neighbour of lanelet {r} (or that its right "
                                 "neighbour) but it does not lie beside it")
@@ -137,7 +139,7 @@ def cut_lanelet(ll: LaneletRecord, cuts_m: Iterable[float]) -> list[LaneletRecor
     pieces keep ``ll``'s fields but their bounds (the caller renumbers and rewires)."""
     left, right = ll.left_xy_m, ll.right_xy_m
     cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(ll.centre_xy_m, axis=0).T))])
-    pieces = []
+    pieces: list[LaneletRecord] = []
     lo_l, lo_r, lo_idx = left[:0], right[:0], 0
     for s in sorted(cuts_m):
         i = int(np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(cum) - 2))
@@ -147,10 +149,13 @@ def cut_lanelet(ll: LaneletRecord, cuts_m: Iterable[float]) -> list[LaneletRecor
         cut_r = right[i] + t * (right[i + 1] - right[i])
         lx, rx = _drop_repeats(np.vstack([lo_l, left[lo_idx:i + 1], cut_l]),
                                np.vstack([lo_r, right[lo_idx:i + 1], cut_r]))
-        pieces.append(replace(ll, left_xy_m=lx, right_xy_m=rx))
+        # a start anchor belongs to the first piece only, an end anchor to the last
+        pieces.append(replace(ll, left_xy_m=lx, right_xy_m=rx, end_anchor_xy_m=None,
+                              start_anchor_xy_m=None if pieces else ll.start_anchor_xy_m))
         lo_l, lo_r, lo_idx = cut_l[None, :], cut_r[None, :], i + 1
     lx, rx = _drop_repeats(np.vstack([lo_l, left[lo_idx:]]), np.vstack([lo_r, right[lo_idx:]]))
-    pieces.append(replace(ll, left_xy_m=lx, right_xy_m=rx))
+    pieces.append(replace(ll, left_xy_m=lx, right_xy_m=rx,
+                          start_anchor_xy_m=None if pieces else ll.start_anchor_xy_m))
     return pieces
 
 
@@ -175,9 +180,9 @@ def _cut_positions(road: dict[int, LaneletRecord], pairs: set[Pair]) -> dict[int
         for here, there in ((a, b), (b, a)):
             centre = road[here].centre_xy_m
             length = polyline_length_m(centre)
-            other = road[there].centre_xy_m
-            for x, y in (other[0], other[-1]):
-                s = project(centre, float(x), float(y)).s_m
+            other = road[there]
+            for x, y in (other.start_xy_m, other.end_xy_m):  # anchors: connectors.py
+                s = project(centre, x, y).s_m
                 if CUT_MARGIN_M < s < length - CUT_MARGIN_M:
                     cuts.setdefault(here, []).append(s)
     out: dict[int, list[float]] = {}
@@ -269,7 +274,7 @@ def split_road(path: str, road: dict[int, LaneletRecord], next_id: int) -> Split
         for r, lf in pairs:
             for pr in pieces.get(r, [r]):
                 for pl in pieces.get(lf, [lf]):
-                    a, b = _overlap_m(road[pr], road[pl])
+                    a, b = overlap_m(road[pr], road[pl])
                     if b - a > CUT_MARGIN_M:
                         new_pairs.add((pr, pl))
         pairs = new_pairs
