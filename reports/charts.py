@@ -17,6 +17,17 @@ PALETTE = ("#2563eb", "#ea580c", "#059669", "#9333ea", "#db2777", "#0891b2", "#6
            "#b45309")
 ESC = html.escape
 Line = tuple[float, str, str]  # (value, colour, label) of a reference line
+# The charts' classes (frame, grid, ticks, legend): every page that embeds a chart
+# carries this stylesheet. Without it an SVG <rect>/<path> fills black by default, and
+# the plot area of a chart is one black block.
+CHART_CSS = """
+svg{display:block;margin:6px 0;background:#fff}
+svg .ct{font-size:12px;font-weight:600;fill:#0f172a}
+svg .tick,svg .xt,svg .yt{font-size:10px;fill:#475569}svg .xt{text-anchor:middle}
+svg .yt{text-anchor:end}svg .legend{font-size:11px;font-weight:600}
+svg .lane{stroke:#fff;stroke-width:1;stroke-dasharray:8 6}
+svg .grid{stroke:#e8edf3;fill:none}svg .frame{fill:none;stroke:#cbd5e1}
+"""
 
 
 def esc(value: object) -> str:

@@ -6,6 +6,11 @@ name=scenario classname="controller.family" time=wall_s>``. A failed run carries
 line each, with the time and trace step where the criterion was violated), an error
 run ``<error type="error">`` with the traceback (or why its directory cannot be read),
 a timeout ``<error type="timeout">``. Key metrics go to ``<system-out>``.
+
+A known failure (``xfail``, :mod:`reports.expectation`) that failed as expected is
+``<skipped type="xfail" message="expected failure: <reason>">`` with its failures as
+text, as pytest writes an xfail; one that passed is ``<failure type="xpass">`` ("fixed:
+remove the xfail") under ``strict``, else a passing case saying so in ``<system-out>``.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 
+from reports.expectation import XFAILED, XPASSED
 from reports.manifest import Manifest, not_run
 from reports.record import Failure
 from reports.record.codec import write_text_atomic
@@ -77,6 +83,44 @@ def _not_run_suite(root: ET.Element, suite_name: str, names: Sequence[str],
                       "hwyeval run ... --resume runs it)")
 
 
+def _outcome(case: ET.Element, run: RunEntry) -> None:
+    """The case's ``<failure>``, ``<error>`` or ``<skipped>`` (module doc)."""
+    seen = run.expectation
+    mark = run.xfail
+    if seen == XFAILED and mark is not None:
+        node = ET.SubElement(case, "skipped", type="xfail",
+                             message=xml_text(f"expected failure: {mark.reason}"))
+        node.text = xml_text("\n".join(failure_line(f) for f in run.failures))
+    elif seen == XPASSED and mark is not None and mark.strict:
+        ET.SubElement(case, "failure", type="xpass", message=xml_text(
+            f"unexpected pass (strict xfail: {mark.reason}): fixed: remove the xfail"))
+    elif run.status == "fail":
+        listing = "; ".join(f.text for f in run.failures) or "failed"
+        node = ET.SubElement(case, "failure", message=xml_text(listing), type="criteria")
+        node.text = xml_text("\n".join(failure_line(f) for f in run.failures))
+    elif run.status == "timeout":
+        first = run.error.strip().splitlines()[0] if run.error.strip() else "timeout"
+        node = ET.SubElement(case, "error", message=xml_text(first), type="timeout")
+        node.text = xml_text(run.error)
+    elif run.status == "error":
+        lines = run.error.strip().splitlines()
+        node = ET.SubElement(case, "error", message=xml_text(lines[-1] if lines else "error"),
+                             type="error")
+        node.text = xml_text(run.error)
+
+
+def _system_out(case: ET.Element, run: RunEntry) -> None:
+    if run.verdict is None or not run.verdict.metrics:
+        return
+    values = run.verdict.values()
+    out = ET.SubElement(case, "system-out")
+    note = ""
+    if run.expectation == XPASSED and run.xfail is not None and not run.xfail.strict:
+        note = f"\nunexpected pass (xfail: {run.xfail.reason}): fixed: remove the xfail"
+    out.text = xml_text("\n".join(f"{k}={values[k]:.6g}" for k in KEY_METRICS if k in values)
+                        + f"\nrun_dir={run.run_dir}" + note)
+
+
 def junit_tree(runs: Sequence[RunEntry], suite_name: str = "hwyeval",
                manifest: Manifest | None = None) -> ET.ElementTree:
     """The JUnit XML tree for the runs, with the manifest's provenance as properties and
@@ -85,50 +129,34 @@ def junit_tree(runs: Sequence[RunEntry], suite_name: str = "hwyeval",
     by_controller: dict[str, list[RunEntry]] = {}
     for run in runs:
         by_controller.setdefault(run.controller, []).append(run)
-    totals = {"tests": 0, "failures": 0, "errors": 0, "time": 0.0}
+    totals = {"tests": 0, "failures": 0, "errors": 0, "skipped": 0, "time": 0.0}
     for controller in sorted(by_controller):
         members = by_controller[controller]
-        failures = sum(1 for r in members if r.status == "fail")
+        expected = sum(1 for r in members if r.expectation == XFAILED)
+        failures = sum(1 for r in members if r.fails_night and r.status in ("fail", "pass"))
         errors = sum(1 for r in members if r.status in ("error", "timeout"))
         time_s = sum(float(_time(r)) for r in members)
         suite = ET.SubElement(root, "testsuite", name=xml_text(f"{suite_name}.{controller}"),
                               tests=str(len(members)), failures=str(failures),
-                              errors=str(errors), skipped="0", time=f"{time_s:.3f}")
+                              errors=str(errors), skipped=str(expected), time=f"{time_s:.3f}")
         _properties(suite, manifest)
         for run in members:
             case = ET.SubElement(suite, "testcase", name=xml_text(run.scenario),
                                  classname=f"{_safe_name(run.controller)}."
                                            f"{_safe_name(run.family)}",
                                  time=_time(run))
-            if run.status == "fail":
-                listing = "; ".join(f.text for f in run.failures) or "failed"
-                node = ET.SubElement(case, "failure", message=xml_text(listing), type="criteria")
-                node.text = xml_text("\n".join(failure_line(f) for f in run.failures))
-            elif run.status == "timeout":
-                first = run.error.strip().splitlines()[0] if run.error.strip() else "timeout"
-                node = ET.SubElement(case, "error", message=xml_text(first), type="timeout")
-                node.text = xml_text(run.error)
-            elif run.status == "error":
-                lines = run.error.strip().splitlines()
-                node = ET.SubElement(case, "error", message=xml_text(lines[-1] if lines
-                                                                     else "error"),
-                                     type="error")
-                node.text = xml_text(run.error)
-            if run.verdict is not None and run.verdict.metrics:
-                values = run.verdict.values()
-                out = ET.SubElement(case, "system-out")
-                out.text = xml_text("\n".join(
-                    f"{k}={values[k]:.6g}" for k in KEY_METRICS if k in values)
-                    + f"\nrun_dir={run.run_dir}")
+            _outcome(case, run)
+            _system_out(case, run)
         totals["tests"] += len(members)
         totals["failures"] += failures
         totals["errors"] += errors
+        totals["skipped"] += expected
         totals["time"] += time_s
     skipped = not_run(manifest, [n for r in runs for n in (r.scenario, r.run_id)])
     if skipped:
         _not_run_suite(root, suite_name, skipped, manifest)
     root.set("tests", str(int(totals["tests"]) + len(skipped)))
-    root.set("skipped", str(len(skipped)))
+    root.set("skipped", str(int(totals["skipped"]) + len(skipped)))
     root.set("failures", str(int(totals["failures"])))
     root.set("errors", str(int(totals["errors"])))
     root.set("time", f"{totals['time']:.3f}")

@@ -18,6 +18,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from reports.expectation import Xfail, expectation, fails_night, xfail_of
+from reports.identity import Setup, setup_of
 from reports.metrics.evaluate import REQUIRED_METRICS
 from reports.metrics.robustness import robustness
 from reports.metrics.timing import loop_times_s
@@ -148,6 +150,29 @@ class RunEntry:
         return self.verdict.value(name) if self.verdict is not None else math.nan
 
     @property
+    def setup(self) -> Setup | None:
+        """The test, limits and system under test it ran with (:mod:`reports.identity`);
+        None for an unreadable directory."""
+        info = self.info
+        return setup_of(info, self.verdict) if info is not None else None
+
+    @property
+    def xfail(self) -> Xfail | None:
+        """Its known-failure mark (:mod:`reports.expectation`), None without one."""
+        info = self.info
+        return xfail_of(info.scenario_spec) if info is not None else None
+
+    @property
+    def expectation(self) -> str:
+        """'xfail' (an expected failure), 'xpass' (an unexpected pass) or ''."""
+        return expectation(self.status, self.xfail)
+
+    @property
+    def fails_night(self) -> bool:
+        """Whether it fails the night (:func:`reports.expectation.fails_night`)."""
+        return fails_night(self.status, self.xfail)
+
+    @property
     def wall_s(self) -> float:
         return self.outcome.wall_s if self.outcome is not None else math.nan
 
@@ -215,11 +240,14 @@ def read_entry(run_dir: Path, parts: Parts = VERDICTS_ONLY) -> RunEntry:
 
 
 def find_entry(runs: Sequence[RunEntry], scenario: str, controller: str) -> RunEntry | None:
-    """The run of ``scenario`` with ``controller`` among ``runs`` (None when absent)."""
-    for r in runs:
-        if r.scenario == scenario and r.controller == controller:
+    """The run of ``scenario`` with ``controller`` among ``runs``; else the only run of
+    ``scenario`` (a scenario whose controller changed between two nights); None when
+    absent or ambiguous."""
+    named = [r for r in runs if r.scenario == scenario]
+    for r in named:
+        if r.controller == controller:
             return r
-    return None
+    return named[0] if len(named) == 1 else None
 
 
 def collect_runs(out_dir: str | Path, parts: Parts = VERDICTS_ONLY) -> list[RunEntry]:

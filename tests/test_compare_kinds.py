@@ -1,7 +1,8 @@
 """compare's finding kinds (why a run differs) on pairs of hand-made nights: a changed
 controller is a behaviour regression; a tightened criterion, a criterion switched off and
-a changed scenario are not; removed and new scenarios; timing. Also the CLI's JSON
-``kind``, ``compare A A`` refused, the page written beside the new night."""
+a changed test are not (a behaviour change beside a waiver still is); removed and new
+scenarios; timing. Also the CLI's JSON ``kind``, ``compare A A`` refused, the page
+written beside the new night."""
 
 from __future__ import annotations
 
@@ -17,7 +18,8 @@ import pytest
 import synthetic_runs as sr
 
 from reports.compare import compare_runs
-from reports.compare.findings import CATEGORIES
+from reports.compare.kinds import CATEGORIES
+from reports.identity import TEST_KEY
 from reports.record import RunRecord, write_run
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,8 +59,9 @@ def _same(record: RunRecord) -> RunRecord:
 
 
 def _with_hash(value: str) -> Callable[[RunRecord], RunRecord]:
+    """The run with the recorded test digest ``value`` (as the runner writes it)."""
     def change(record: RunRecord) -> RunRecord:
-        spec = dict(record.info.scenario_spec, content_sha256=value)
+        spec = dict(record.info.scenario_spec, **{TEST_KEY: value})
         record.info = dataclasses.replace(record.info, scenario_spec=spec)
         return record
     return change
@@ -75,17 +78,21 @@ def test_a_worse_controller_is_a_behaviour_regression(base: Path, tmp_path: Path
     assert all(r.category in CATEGORIES for r in result.rows)
 
 
-def test_a_tightened_criterion_is_criteria_changed_not_a_regression(base: Path,
-                                                                    tmp_path: Path) -> None:
-    # the same trajectory judged with a limit it cannot meet: a new failure, but the test
-    # changed, not the controller
+def test_a_tightened_criterion_is_limits_changed_not_a_regression(base: Path,
+                                                                  tmp_path: Path) -> None:
+    # the same trajectory judged with a limit it cannot meet: a new failure, but the
+    # limit moved, not the behaviour
     new = _night(base, tmp_path, _same, {"max_abs_lat_acc_mps2": 0.01})
     result = compare_runs(base, new, tmp_path / "cmp")
     assert result.exit_code == 0 and not result.regressions
-    assert "criteria_changed" in _categories(result)
+    assert "limits_changed" in _categories(result)
     failures = [r for r in result.rows if r.key == KEY and r.kind == "new_failure"]
-    assert failures and failures[0].category == "criteria_changed"
-    assert result.category_counts["criteria_changed"] >= 2  # the failure and the change
+    assert failures and failures[0].category == "limits_changed"
+    assert result.category_counts["limits_changed"] >= 2  # the failure and the change
+    # the changed criterion's row carries both limits and the new value under each
+    (row,) = [r for r in result.rows if r.kind == "limit_changed"]
+    assert row.base_limit == pytest.approx(4.89) and row.limit == pytest.approx(0.01)
+    assert row.new == pytest.approx(row.base)  # the behaviour did not move
 
 
 def test_a_criterion_switched_off_is_waived(base: Path, tmp_path: Path) -> None:
@@ -94,20 +101,35 @@ def test_a_criterion_switched_off_is_waived(base: Path, tmp_path: Path) -> None:
     assert result.exit_code == 0
     waived = result.of_category("waived")
     assert [r.metric for r in waived] == ["max_abs_lat_acc_mps2"]
-    # a run whose test was loosened is not gated either: its findings are listed as
-    # waived, for a reader to judge
+    # a waiver loosens the limit, the behaviour is still compared under the base's
+    # limits: a controller that tracks worse beside the waiver gates
     both = _night(base, tmp_path, _worse, {"max_abs_lat_acc_mps2": "off"}, name="both")
     r2 = compare_runs(base, both, tmp_path / "cmp2")
-    assert not r2.regressions and r2.of_category("waived")
+    assert r2.exit_code == 1 and r2.of_category("waived")
+    assert {r.category for r in r2.regressions} == {"behaviour_regression"}
 
 
-def test_a_changed_scenario_is_scenario_changed(base: Path, tmp_path: Path) -> None:
+def test_a_waiver_of_a_failing_criterion_is_not_a_fix(base: Path, tmp_path: Path) -> None:
+    # the sharp curve fails lateral acceleration in base; switching that criterion off
+    # makes it pass, which is a limit change, never "fixed"
+    run = "sharp_curve__ctrl_a"
+    new = Path(shutil.copytree(base, tmp_path / "new"))
+    _rewrite(new, dict(sr.catalog_records())[run], {"max_abs_lat_acc_mps2": "off"}, name=run)
+    result = compare_runs(base, new, tmp_path / "cmp")
+    assert result.exit_code == 0 and result.fixed == []
+    rows = [r for r in result.rows if r.key == "sharp_curve [ctrl_a]"]
+    assert {r.category for r in rows} == {"waived"}
+    (limit,) = [r for r in rows if r.kind == "criterion_off"]
+    assert limit.new > limit.base_limit  # still beyond the old limit: nothing was fixed
+
+
+def test_a_changed_test_is_test_changed(base: Path, tmp_path: Path) -> None:
     b = Path(shutil.copytree(base, tmp_path / "b"))
     _rewrite(b, _with_hash("a" * 64)(dict(sr.catalog_records())[RUN]))
     new = _night(base, tmp_path, lambda r: _worse(_with_hash("b" * 64)(r)))
     result = compare_runs(b, new, tmp_path / "cmp")
     assert result.exit_code == 0 and not result.regressions
-    assert "scenario_changed" in _categories(result)
+    assert "test_changed" in _categories(result)
     # the same hash on both sides: the worse tracking gates again
     same = _night(base, tmp_path, lambda r: _worse(_with_hash("a" * 64)(r)), name="same")
     assert compare_runs(b, same, tmp_path / "cmp2").exit_code == 1
@@ -144,10 +166,11 @@ def test_the_cli_json_kinds_the_same_night_and_the_default_output(base: Path,
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     kinds = {row["kind"] for row in doc["rows"]}
-    assert "criteria_changed" in kinds and kinds <= set(CATEGORIES)
-    assert {row["finding"] for row in doc["rows"] if row["kind"] == "criteria_changed"} >= {
+    assert "limits_changed" in kinds and kinds <= set(CATEGORIES)
+    assert {row["finding"] for row in doc["rows"] if row["kind"] == "limits_changed"} >= {
         "new_failure"}
-    assert set(doc["gating_kinds"]) == {"behaviour_regression", "removed_scenario"}
+    assert set(doc["gating_kinds"]) == {"behaviour_regression", "known_failure",
+                                        "removed_scenario"}
     # the comparison's files beside the new night, not inside it
     assert (tmp_path / "new.compare" / "compare.html").is_file()
     assert not (new / "compare").exists()

@@ -27,6 +27,7 @@ import pytest
 from browser import chromium, console_errors, needs_chromium, screenshot
 
 from reports.history import load_trends
+from reports.manifest import catalog_identity
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 
@@ -120,8 +121,10 @@ def make_night(k: int, source: Path, flaky_bad: Path | None, dest: Path, catalog
         shutil.copytree(flaky_bad / "curve_lane_keep", dest / "curve_lane_keep")
         _set_hash(dest / "curve_lane_keep", good_hash)
     manifest = json.loads((dest / "manifest.json").read_text())
+    identity = catalog_identity(Path(catalog))  # as run from that catalog file
     manifest.update(catalog=catalog, catalog_name="nightly", started=started(k),
-                    finished=started(k))
+                    finished=started(k), catalog_id=identity.name,
+                    catalog_origin=identity.origin)
     manifest["provenance"].update(git_sha=revision(k), git_dirty=False)
     (dest / "manifest.json").write_text(json.dumps(manifest))
     return dest
@@ -224,14 +227,16 @@ def test_compare_against_the_last_night_and_the_last_pass(nights: dict[str, Any]
     assert Path(json.loads(last.stdout)["base_dir"]) == nights["dirs"][-2]
     good = hwyeval("compare", "--history", str(nights["db"]), new, "--baseline", "last-pass",
                    "--json")
-    # against night 19, the last all-pass night: stall_evade now fails, but its content
-    # (the controller options) changed, which compare reports and does not gate
-    assert good.returncode == 0, good.stderr
+    # against night 19, the last all-pass night: stall_evade now fails and its
+    # controller's options changed: the system under test, which is what the gate is
+    # for (its test is the same), so it gates and says what changed
+    assert good.returncode == 1, good.stderr
     result = json.loads(good.stdout)
     assert Path(result["base_dir"]) == nights["dirs"][CHANGE_NIGHT - 2]
-    assert {(r["kind"], r["scenario"]) for r in result["rows"]} >= {
-        ("scenario_changed", "stall_evade")}
-    assert not any(r["gate"] for r in result["rows"])
+    kinds = {(r["kind"], r["scenario"]) for r in result["rows"]}
+    assert {("sut_changed", "stall_evade"), ("behaviour_regression", "stall_evade")} <= kinds
+    assert not any(r["kind"] == "test_changed" for r in result["rows"])
+    assert {r["scenario"] for r in result["rows"] if r["gate"]} == {"stall_evade"}
 
 
 @pytest.fixture()
@@ -263,9 +268,14 @@ def test_the_trend_page_in_chromium(nights: dict[str, Any], driver: Any) -> None
         "stall_evade", "curve_lane_keep", "free_lane_keep"]
     assert rows[0].location["y"] + rows[0].size["height"] < driver.execute_script(
         "return window.innerHeight")
-    # the failing row's strip: pass until night 19, fail from 20 (two merged cells)
+    # the failing row's strip: pass until night 19, fail from 20, a cell per night, each
+    # linked to that night's run page; an S over night 20: its controller changed
     cells = rows[0].find_elements(By.CSS_SELECTOR, "svg.strip rect")
-    assert [c.get_attribute("class") for c in cells] == ["pass", "fail"]
+    assert [c.get_attribute("class") for c in cells] == (
+        ["pass"] * (CHANGE_NIGHT - 1) + ["fail"] * (N_NIGHTS - CHANGE_NIGHT + 1))
+    assert len(rows[0].find_elements(By.CSS_SELECTOR, "svg.strip a")) == N_NIGHTS
+    marks = rows[0].find_elements(By.CSS_SELECTOR, "svg.strip text.chg")
+    assert [m.text for m in marks] == ["S"]
     assert rows[0].find_elements(By.CSS_SELECTOR, "svg.sparkline line.limit")
     assert rows[1].find_elements(By.CSS_SELECTOR, ".badge.flaky")
     failing = driver.find_element(By.ID, "failing-table").text

@@ -55,7 +55,8 @@ def night(k: int, n_scenarios: int = N_SCENARIOS, n_metrics: int = N_METRICS,
     limits[:, 0] = 0.95
     info = NightInfo(night_id=f"night-{k:03d}", started_at=T0 + dt.timedelta(days=k),
                      git_revision=revision(k), hwyeval_version="0.1.0", host="ci",
-                     catalog="/ci/catalogs/big.toml", out_dir=f"/runs/{k}", git_dirty=False)
+                     catalog="/ci/catalogs/big.toml", out_dir=f"/runs/{k}", git_dirty=False,
+                     catalog_id="big.toml")  # as read_night names a catalog outside git
     return NightRecord(
         info=info, scenarios=tuple(f"scenario_{i:04d}" for i in range(n_scenarios)),
         scenario_hashes=("h" * 64,) * n_scenarios, controllers=("two_loop",) * n_scenarios,

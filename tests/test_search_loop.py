@@ -17,7 +17,7 @@ from reports.metrics.criteria import CRITERIA_METRICS, Criteria
 from reports.metrics.values import measured
 from reports.record import Verdict
 from suite.search.loop import SAMPLERS, SearchSettings, objective, open_storage, search_family
-from suite.search.shrink import shrink_failures
+from suite.search.shrink import shrink_bound, shrink_failures
 from suite.search.space import Family, Param, load_search_catalog
 
 CATALOG = """
@@ -165,6 +165,8 @@ def test_shrink_moves_toward_the_nominal_point_in_the_same_mode(family: Family,
     assert res.failures
     cases, tried, ok = shrink_failures(res.family, res.failures, FakeRunner(), points=4)
     assert ok and cases and tried
+    # the runs beside the budget that the search announces bound what it runs
+    assert len(tried) <= shrink_bound(res.family, res.failures, points=4)
     for case in cases:
         assert case.result.is_failure and case.result.mode == case.mode
         assert res.family.distance(case.result.values) <= \

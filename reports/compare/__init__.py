@@ -5,8 +5,11 @@ Only stored verdicts are read (``run.json``; an unreadable run directory is an
 
 * **Behaviour gates** (exit 1): a run that passed and no longer does, a worse status,
   a newly failed criterion, a safety/comfort/tracking metric worse beyond its tolerance,
-  a run missing from new. Same code on the same catalog gives the same behaviour: these
-  do not depend on the machine.
+  a run missing from new, a strict known failure that passed. Same code on the same
+  catalog gives the same behaviour: these do not depend on the machine. A changed
+  system under test (controller, options, code) is what the gate is for: its runs gate;
+  a changed test does not; a changed limit is judged both ways
+  (:mod:`~reports.compare.kinds`).
 * **Timing warns**: wall-clock metrics (kind ``timing``, ``deadline_misses`` included)
   are reported as ratios new/base, per run and as the catalog's median, with the load
   of both sides; with ``--timing-gate`` (``timing_gate = true``) a median ratio beyond
@@ -17,8 +20,10 @@ Only stored verdicts are read (``run.json``; an unreadable run directory is an
   never pass a night.
 
 Modules: :mod:`~reports.compare.tolerances` (TOML), :mod:`~reports.compare.findings`
-(matching, rows), :mod:`~reports.compare.timing` (catalog-wide ratios, load),
-:mod:`~reports.compare.render` (terminal, JSON, CSV, HTML).
+(matching, rows), :mod:`~reports.compare.kinds` (why a pair differs: the test, the
+limits, the system under test, known failures), :mod:`~reports.compare.timing`
+(catalog-wide ratios, load), :mod:`~reports.compare.render` (terminal, JSON, CSV,
+HTML).
 """
 
 from __future__ import annotations
@@ -26,17 +31,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from reports.compare.findings import (
-    CATEGORIES,
-    CompareRow,
-    DuplicateRuns,
-    categorised,
-    change_rows,
-    match_keys,
-    metric_rows,
-    pair_change,
-    status_rows,
-)
+from reports.compare.findings import CompareRow, DuplicateRuns, match_runs, metric_rows
+from reports.compare.kinds import CATEGORIES, pair_findings
 from reports.compare.timing import TimingLine, load_note, timing_lines
 from reports.compare.tolerances import MetricTolerance, Tolerances
 from reports.manifest import Manifest, read_manifest
@@ -105,7 +101,14 @@ class CompareResult:
 
     @property
     def fixed(self) -> list[str]:
-        return [r.key for r in self.of_kind("fixed")]
+        """Runs fixed: passing now under the same limits (a waiver is not a fix), and
+        known failures that passed ("fixed: remove the xfail")."""
+        return [r.key for r in self.fixed_rows]
+
+    @property
+    def fixed_rows(self) -> list[CompareRow]:
+        return [r for r in self.rows if (r.kind == "fixed" and r.category == "improvement")
+                or r.kind == "xpass"]
 
     @property
     def missing(self) -> list[str]:
@@ -132,29 +135,25 @@ def compare_evaluated(base: list[RunEntry], new: list[RunEntry],
                       ) -> tuple[list[CompareRow], int, list[tuple[RunEntry, RunEntry]]]:
     """Findings for two lists of runs, the number matched and the matched pairs."""
     tol = tolerances or Tolerances()
-    base_map, new_map = match_keys(base, new)
     rows: list[CompareRow] = []
     pairs: list[tuple[RunEntry, RunEntry]] = []
-    for key in sorted(set(base_map) | set(new_map)):
-        b, n = base_map.get(key), new_map.get(key)
+    for m in match_runs(base, new):
+        b, n = m.base, m.new
         if n is None and b is not None:
-            rows.append(CompareRow(key, b.scenario, b.controller, "missing",
+            rows.append(CompareRow(m.key, b.scenario, b.controller, "missing",
                                    note="in base only", gate=tol.missing_is_regression,
                                    category="removed_scenario"))
             continue
         if b is None or n is None:
             if n is not None:
-                rows.append(CompareRow(key, n.scenario, n.controller, "new",
+                rows.append(CompareRow(m.key, n.scenario, n.controller, "new",
                                        note=f"in new only ({n.status})",
                                        category="new_scenario"))
             continue
         pairs.append((b, n))
-        change = pair_change(b, n)
-        found = status_rows(key, b, n)
-        if b.status in ("pass", "fail") and n.status in ("pass", "fail"):
-            found += metric_rows(key, b, n, tol)
-        rows.extend(categorised(r, change) for r in found)
-        rows.extend(change_rows(key, n, change))
+        both_judged = b.status in ("pass", "fail") and n.status in ("pass", "fail")
+        metrics = metric_rows(m.key, b, n, tol) if both_judged else []
+        rows.extend(pair_findings(m.key, b, n, metrics))
     return rows, len(pairs), pairs
 
 

@@ -1,9 +1,11 @@
 """Findings of a comparison: run matching, status changes, metric and timing changes.
 
-Matching: runs are matched by (scenario, controller); two run directories of one side
-with the same key raise :class:`DuplicateRuns`. When each directory holds exactly
-one controller and they differ (comparing controller A against B), runs are matched by
-scenario name alone. An unreadable run directory is matched by its directory name.
+Matching (:func:`match_runs`): when every scenario name appears once on each side (a
+catalog's names are unique), runs are matched by scenario name, so a scenario whose
+controller changed in the catalog is compared run for run (its key then reads
+``scenario [a → b]``); otherwise by (scenario, controller). Two run directories of one
+side with the same key raise :class:`DuplicateRuns`. An unreadable run directory is
+matched by its directory name.
 
 Finding kinds and what they do (``CompareRow.gate`` says whether it fails the
 comparison):
@@ -18,34 +20,19 @@ comparison):
                        timing gate looks at the catalog's median ratio instead), or a
                        timing count (``deadline_misses``) up (gates with the timing gate)
 ``health_change``      a health metric worse beyond tolerance (warns)
+``xpass``              a known failure (xfail) passed: "fixed: remove the xfail"
+                       (gates with ``strict = true``)
+``xfailed``            a known failure failed as expected (informational)
+``limit_changed``,     a criterion's limit differs, switched off (``criterion_off``):
+``criterion_off``      the new run's value under both limits (informational)
+``test_changed``,      the test, the system under test changed (informational; the
+``sut_changed``        behaviour findings of the run say what it did)
 ``new``, ``fixed``, ``status_change``, ``metric_improvement``, ``timing_faster``,
 ``metric_nan``         informational
 =====================  =========================================================
 
-Metrics of error/timeout runs are not compared (their status already is).
-
-Categories (``CompareRow.category``; compare --json calls it ``kind`` and the finding
-kind above ``finding``) say *why* a run differs, so that a changed test never reads as
-a controller regression:
-
-======================  ==========================================================
-``behaviour_regression``  a gating finding on a run whose scenario and criteria are
-                          unchanged (same content hash and resolved criteria): gates
-``criteria_changed``      a criterion's limit differs between the two runs: the
-                          findings of that run are listed under it and do not gate
-``waived``                a criterion in force in base is switched off (``"off"``)
-                          in new: listed, does not gate
-``scenario_changed``      the scenario's content hash differs (anything but the
-                          criteria: net, actors, speeds, seed): does not gate
-``removed_scenario``      in base only: gates unless ``missing_is_regression = false``
-``new_scenario``          in new only: informational
-``timing``                wall-clock findings: warn (gate with ``--timing-gate``)
-``improvement``           fixed runs and metrics better beyond tolerance
-``info``                  the rest (status changes that are not worse, NaN metrics)
-======================  ==========================================================
-
-The exit code is 1 when a ``behaviour_regression`` or a gating ``removed_scenario``
-finding exists (or, with the timing gate, a ``timing`` one), else 0.
+Metrics of error/timeout runs are not compared (their status already is). Each finding's
+category — why the run differs — is :mod:`reports.compare.kinds`'s.
 """
 
 from __future__ import annotations
@@ -56,7 +43,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from reports.compare.tolerances import HIGHER_IS_WORSE, Tolerances
-from reports.record import MetricValue
+from reports.record import Failure, MetricValue
 from reports.tables import RunEntry
 
 STATUS_RANK = {"pass": 0, "fail": 1, "timeout": 2, "error": 2}
@@ -69,7 +56,10 @@ GOOD_KINDS = frozenset({"fixed", "metric_improvement", "timing_faster"})
 @dataclass(frozen=True)
 class CompareRow:
     """One finding; values in ``unit``; ``metric_kind`` the metric's kind ('' for a
-    status finding); ``gate``: it fails the comparison."""
+    status finding); ``limit``: the new run's limit (or a timing ratio's limit),
+    ``base_limit``: the base run's where they differ (NaN otherwise); ``gate``: it
+    fails the comparison; ``category``: why the run differs
+    (:data:`reports.compare.kinds.CATEGORIES`)."""
 
     key: str
     scenario: str
@@ -86,6 +76,7 @@ class CompareRow:
     note: str = ""
     gate: bool = False
     category: str = "info"
+    base_limit: float = math.nan
 
     @property
     def regression(self) -> bool:
@@ -98,90 +89,18 @@ class CompareRow:
         return self.kind in WARNING_KINDS and not self.gate
 
 
-CATEGORIES = ("behaviour_regression", "criteria_changed", "waived", "scenario_changed",
-              "removed_scenario", "new_scenario", "timing", "improvement", "info")
-GATING_CATEGORIES = ("behaviour_regression", "removed_scenario")  # timing: with the gate
-CONTENT_KEY = "content_sha256"  # RunInfo.scenario_spec's content hash (suite.run.info)
-
-
 @dataclass(frozen=True)
-class PairChange:
-    """What differs in the set-up of a matched pair of runs: the criteria whose limits
-    differ (name, base limit, new limit; None = off), and whether the scenario's content
-    hash differs (both known)."""
+class Judgement:
+    """A run's status and failed criteria under some limits (its own, or another
+    run's: :func:`reports.compare.kinds.under_limits`)."""
 
-    criteria: tuple[tuple[str, float | None, float | None], ...] = ()
-    scenario_changed: bool = False
-
-    @property
-    def waived(self) -> tuple[str, ...]:
-        """Criteria in force in base and switched off in new."""
-        return tuple(name for name, b, n in self.criteria if b is not None and n is None)
-
-    @property
-    def limits_changed(self) -> tuple[tuple[str, float | None, float | None], ...]:
-        """Criteria whose limit changed (not only switched off)."""
-        return tuple(c for c in self.criteria if not (c[1] is not None and c[2] is None))
+    status: str
+    failures: tuple[Failure, ...] = ()
 
 
-def pair_change(b: RunEntry, n: RunEntry) -> PairChange:
-    """The set-up differences of a matched pair (:class:`PairChange`) from the stored
-    verdicts' resolved criteria and the runs' content hashes."""
-    if b.verdict is None or n.verdict is None:  # an unreadable or unjudged run: unknown,
-        changed: tuple[tuple[str, float | None, float | None], ...] = ()  # not changed
-    else:
-        cb, cn = b.verdict.criteria, n.verdict.criteria
-        changed = tuple((name, cb.get(name), cn.get(name))
-                        for name in sorted(set(cb) | set(cn))
-                        if _limit(cb.get(name)) != _limit(cn.get(name)))
-    hb = b.info.scenario_spec.get(CONTENT_KEY) if b.info is not None else None
-    hn = n.info.scenario_spec.get(CONTENT_KEY) if n.info is not None else None
-    return PairChange(changed, bool(hb and hn and hb != hn))
-
-
-def _limit(value: float | None) -> float | None:
-    return None if value is None else float(value)
-
-
-def categorised(row: CompareRow, change: PairChange) -> CompareRow:
-    """``row`` with its category (module doc); a gating behaviour finding of a pair
-    whose criteria or scenario changed no longer gates."""
-    from dataclasses import replace
-
-    if row.kind in ("timing_slower", "timing_faster"):
-        return replace(row, category="timing")
-    if row.kind in BEHAVIOUR_GATES:
-        if change.limits_changed:
-            return replace(row, category="criteria_changed", gate=False)
-        if change.scenario_changed:
-            return replace(row, category="scenario_changed", gate=False)
-        if change.waived:
-            return replace(row, category="waived", gate=False)
-        return replace(row, category="behaviour_regression")
-    if row.kind in GOOD_KINDS:
-        return replace(row, category="improvement")
-    return replace(row, category="info")
-
-
-def change_rows(key: str, n: RunEntry, change: PairChange) -> list[CompareRow]:
-    """One row per changed criterion (``criteria_changed`` or ``waived``) and one for a
-    changed scenario, whether or not the verdict moved: a reader sees every test that
-    changed."""
-    common: dict[str, Any] = {"key": key, "scenario": n.scenario, "controller": n.controller}
-    rows = []
-    for name, b, v in change.criteria:
-        waived = b is not None and v is None
-        text = "off" if v is None else f"{v:g}"
-        rows.append(CompareRow(kind="criterion_off" if waived else "criterion_changed",
-                               metric=name, base=math.nan if b is None else float(b),
-                               new=math.nan if v is None else float(v),
-                               note=f"{name}: {'off' if b is None else f'{b:g}'} → {text}",
-                               category="waived" if waived else "criteria_changed", **common))
-    if change.scenario_changed:
-        rows.append(CompareRow(kind="scenario_changed", note="the scenario's content hash "
-                               "differs (net, actors, speeds, seed or options)",
-                               category="scenario_changed", **common))
-    return rows
+def own_judgement(entry: RunEntry) -> Judgement:
+    """The run's stored verdict."""
+    return Judgement(entry.status, entry.failures)
 
 
 class DuplicateRuns(ValueError):
@@ -189,31 +108,61 @@ class DuplicateRuns(ValueError):
     comparison would silently keep one of them (the CLI exits 2)."""
 
 
-def match_keys(base: Sequence[RunEntry], new: Sequence[RunEntry]
-               ) -> tuple[dict[str, RunEntry], dict[str, RunEntry]]:
-    """The runs of each side by their matching key (see the module doc)."""
+@dataclass(frozen=True)
+class Matched:
+    """A run key and its run on each side (None: that side has none)."""
+
+    key: str
+    base: RunEntry | None
+    new: RunEntry | None
+
+    def __post_init__(self) -> None:
+        if self.base is None and self.new is None:
+            raise ValueError(f"Matched {self.key!r}: neither side has the run")
+
+
+def _unique_names(runs: Sequence[RunEntry]) -> bool:
+    names = [r.scenario for r in runs if r.record is not None]
+    return len(names) == len(set(names))
+
+
+def _keyed(runs: Sequence[RunEntry], other: Sequence[RunEntry], key: Any
+           ) -> dict[str, RunEntry]:
+    """``runs`` by their matching key; an unreadable run directory knows only its name:
+    it takes the key of the other side's run in the directory of that name."""
+    by_dir = {r.run_id: key(r) for r in other if r.record is not None}
+    out: dict[str, RunEntry] = {}
+    for r in runs:
+        k = by_dir.get(r.run_id, key(r)) if r.record is None else key(r)
+        if k in out:
+            raise DuplicateRuns(f"{out[k].run_dir} and {r.run_dir} are both {k}: "
+                                "which one to compare is ambiguous (remove one, or "
+                                "compare outputs of one catalog run each)")
+        out[k] = r
+    return out
+
+
+def match_runs(base: Sequence[RunEntry], new: Sequence[RunEntry]) -> list[Matched]:
+    """The runs of both sides matched (see the module doc), sorted by key."""
     base_ctrls = {r.controller for r in base if r.record is not None}
     new_ctrls = {r.controller for r in new if r.record is not None}
-    by_scenario = len(base_ctrls) == 1 and len(new_ctrls) == 1 and base_ctrls != new_ctrls
+    catalog_swap = len(base_ctrls) == 1 and len(new_ctrls) == 1 and base_ctrls != new_ctrls
+    by_name = catalog_swap or (_unique_names(base) and _unique_names(new))
 
     def key(r: RunEntry) -> str:
-        return r.scenario if by_scenario else f"{r.scenario} [{r.controller}]"
+        return r.scenario if by_name else f"{r.scenario} [{r.controller}]"
 
-    def keyed(runs: Sequence[RunEntry], other: Sequence[RunEntry]) -> dict[str, RunEntry]:
-        # an unreadable run directory knows only its name: it takes the key of the
-        # other side's run in the directory of that name
-        by_dir = {r.run_id: key(r) for r in other if r.record is not None}
-        out: dict[str, RunEntry] = {}
-        for r in runs:
-            k = by_dir.get(r.run_id, key(r)) if r.record is None else key(r)
-            if k in out:
-                raise DuplicateRuns(f"{out[k].run_dir} and {r.run_dir} are both {k}: "
-                                    "which one to compare is ambiguous (remove one, or "
-                                    "compare outputs of one catalog run each)")
-            out[k] = r
-        return out
+    bm, nm = _keyed(base, new, key), _keyed(new, base, key)
 
-    return keyed(base, new), keyed(new, base)
+    def label(k: str, b: RunEntry | None, n: RunEntry | None) -> str:
+        if catalog_swap or not by_name:
+            return k
+        if b is not None and n is not None and b.controller != n.controller:
+            return f"{k} [{b.controller} → {n.controller}]"
+        return f"{k} [{(n if n is not None else b).controller}]"  # type: ignore[union-attr]
+
+    return [Matched(label(k, bm.get(k), nm.get(k)), bm.get(k), nm.get(k))
+            for k in sorted(set(bm) | set(nm))]
 
 
 def _last_line(text: str) -> str:
@@ -221,27 +170,30 @@ def _last_line(text: str) -> str:
     return lines[-1] if lines else ""
 
 
-def status_rows(key: str, b: RunEntry, n: RunEntry) -> list[CompareRow]:
-    """Status changes of one matched run, and criteria new fails that base did not."""
+def status_rows(key: str, b: RunEntry, n: RunEntry, nj: Judgement | None = None
+                ) -> list[CompareRow]:
+    """Status changes of one matched run, and criteria new fails that base did not;
+    ``nj``: the new run's judgement to compare (default: its own verdict)."""
+    nj = nj if nj is not None else own_judgement(n)
     rows = []
     common: dict[str, Any] = {"key": key, "scenario": n.scenario, "controller": n.controller}
-    rb, rn = STATUS_RANK.get(b.status, 2), STATUS_RANK.get(n.status, 2)
-    note = f"{b.status} → {n.status}"
-    if n.failures and n.status != "pass":
-        note += ": " + "; ".join(f.text for f in n.failures)
-    elif n.error and n.status in ("error", "timeout"):
-        note += ": " + (_last_line(n.error) or n.status)
-    if b.status == "pass" and n.status != "pass":
+    rb, rn = STATUS_RANK.get(b.status, 2), STATUS_RANK.get(nj.status, 2)
+    note = f"{b.status} → {nj.status}"
+    if nj.failures and nj.status != "pass":
+        note += ": " + "; ".join(f.text for f in nj.failures)
+    elif n.error and nj.status in ("error", "timeout"):
+        note += ": " + (_last_line(n.error) or nj.status)
+    if b.status == "pass" and nj.status != "pass":
         rows.append(CompareRow(kind="new_failure", note=note, gate=True, **common))
-    elif n.status == "pass" and b.status != "pass":
+    elif nj.status == "pass" and b.status != "pass":
         rows.append(CompareRow(kind="fixed", note=note, **common))
     elif rn > rb:
         rows.append(CompareRow(kind="worse_status", note=note, gate=True, **common))
-    elif b.status != n.status:
+    elif b.status != nj.status:
         rows.append(CompareRow(kind="status_change", note=note, **common))
-    if b.status == "fail" and n.status == "fail":
+    if b.status == "fail" and nj.status == "fail":
         base_criteria = {f.criterion for f in b.failures}
-        for failure in n.failures:
+        for failure in nj.failures:
             if failure.criterion not in base_criteria:
                 rows.append(CompareRow(kind="new_criterion", metric=failure.metric,
                                        unit=failure.unit, base=b.value(failure.metric),

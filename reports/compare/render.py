@@ -18,7 +18,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from reports.compare.findings import GATING_CATEGORIES, GOOD_KINDS, CompareRow
+from reports.charts import CHART_CSS
+from reports.compare.findings import GOOD_KINDS, CompareRow
+from reports.compare.kinds import GATING_CATEGORIES
 from reports.compare.overlay import overlays_html
 from reports.manifest import Manifest
 from reports.record.codec import to_plain, write_text_atomic
@@ -62,9 +64,16 @@ def row_line(row: CompareRow) -> str:
     return f"{row.kind:<17} {row.key}: {row.note}"
 
 
-CHANGED_TESTS = (("criteria_changed", "criteria changed: the test, not the controller"),
-                 ("waived", "waived: a criterion switched off"),
-                 ("scenario_changed", "scenario changed: not comparable run for run"))
+# The labelled categories, each with its heading (which says whether it gates).
+CHANGED_TESTS = (
+    ("known_failure", "known failures (xfail; an unexpected pass gates when strict)"),
+    ("sut_changed", "system under test changed (controller, options or code; its runs "
+                    "are compared and gate)"),
+    ("limits_changed", "limits changed: each value judged under both limits (the change "
+                       "does not gate; behaviour under the old limits does)"),
+    ("waived", "waived: a criterion switched off — a limit change, not a fix (does not "
+               "gate)"),
+    ("test_changed", "test changed: not comparable run for run (does not gate)"))
 
 
 def _listed(rows: Sequence[CompareRow], indent: str = "  ") -> list[str]:
@@ -96,6 +105,18 @@ def _timing_block(result: CompareResult) -> list[str]:
     return lines
 
 
+def _verdict(result: CompareResult) -> str:
+    """The terminal's last line: why the comparison fails, or that it does not."""
+    if result.timing_failures:
+        return "FAIL: timing slower than allowed (--timing-gate)"
+    if result.regressions and all(r.kind == "xpass" for r in result.regressions):
+        return "FAIL: a strict known failure passed (remove its xfail)"
+    if result.regressions:
+        return "FAIL: behaviour regressed"
+    return "OK: no behaviour regression" + (
+        f" ({len(result.warnings)} warning(s) do not gate)" if result.warnings else "")
+
+
 def summary_text(result: CompareResult) -> str:
     """The terminal report (module doc)."""
     lines = [_side("base", result.base_dir, result.base_manifest),
@@ -112,7 +133,7 @@ def summary_text(result: CompareResult) -> str:
     for category, title in CHANGED_TESTS:
         rows = result.of_category(category)
         if rows:
-            lines.append(f"{title} ({len(rows)}, does not gate):")
+            lines.append(f"{title} ({len(rows)}):")
             lines += _listed(rows)
     lines += _timing_block(result)
     health = result.of_kind("health_change")
@@ -121,17 +142,10 @@ def summary_text(result: CompareResult) -> str:
         lines += _listed(health)
     if result.fixed:
         lines.append(f"fixed ({len(result.fixed)}):")
-        lines += _listed(result.of_kind("fixed"))
+        lines += _listed(result.fixed_rows)
     if result.added:
         lines.append(f"new runs ({len(result.added)}): " + ", ".join(result.added[:MAX_LISTED]))
-    if result.timing_failures:
-        verdict = "FAIL: timing slower than allowed (--timing-gate)"
-    elif result.regressions:
-        verdict = "FAIL: behaviour regressed"
-    else:
-        verdict = "OK: no behaviour regression" + (
-            f" ({len(result.warnings)} warning(s) do not gate)" if result.warnings else "")
-    lines.append(f"{verdict} (exit {result.exit_code})")
+    lines.append(f"{_verdict(result)} (exit {result.exit_code})")
     if result.csv_path is not None:
         lines.append(f"details: {result.csv_path}  {result.html_path}")
     return "\n".join(lines)
@@ -158,9 +172,9 @@ def as_json(result: CompareResult) -> str:
 
 
 def _row_plain(row: CompareRow) -> dict[str, Any]:
-    """A finding for JSON: ``kind`` is its category (why it differs: behaviour_regression,
-    scenario_changed, criteria_changed, waived, new_scenario, removed_scenario, timing,
-    improvement, info), ``finding`` what was found (new_failure, metric_regression, ...)."""
+    """A finding for JSON: ``kind`` is its category (why it differs:
+    :data:`reports.compare.kinds.CATEGORIES`), ``finding`` what was found (new_failure,
+    metric_regression, ...)."""
     plain: dict[str, Any] = to_plain(row)
     plain["finding"] = plain.pop("kind")
     plain["kind"] = plain.pop("category")
@@ -171,7 +185,7 @@ def _row_plain(row: CompareRow) -> dict[str, Any]:
 
 CSV_COLUMNS = ("key", "scenario", "controller", "category", "kind", "regression", "warning",
                "metric", "unit", "metric_kind", "base", "new", "delta", "ratio", "limit",
-               "note")
+               "base_limit", "note")
 
 
 def _csv_num(value: float) -> str:
@@ -190,7 +204,7 @@ def write_compare_csv(result: CompareResult, path: Path) -> Path:
         writer.writerow([r.key, r.scenario, r.controller, r.category, r.kind, int(r.regression),
                          int(r.warning), r.metric, r.unit, r.metric_kind, _csv_num(r.base),
                          _csv_num(r.new), _csv_num(r.delta), _csv_num(r.ratio),
-                         _csv_num(r.limit), r.note])
+                         _csv_num(r.limit), _csv_num(r.base_limit), r.note])
     write_text_atomic(path, fh.getvalue())
     return path
 
@@ -206,7 +220,7 @@ th{background:#f8fafc}td.num{text-align:right;font-variant-numeric:tabular-nums}
 tr.reg td{background:#fef2f2}tr.warn td{background:#fffbeb}tr.good td{background:#f0fdf4}
 h2{font-size:16px;margin:22px 0 6px}.none{color:#94a3b8;font-style:italic}
 .overlay{background:#fff;display:inline-block;margin:4px 8px 4px 0}
-"""
+""" + CHART_CSS
 
 
 RunLinks = dict[str, tuple[str, str]]  # finding key -> (base page href, new page href)
@@ -250,13 +264,17 @@ def _table(rows: Sequence[CompareRow], title: str, links: RunLinks | None = None
             "good" if r.kind in GOOD_KINDS else "")
         ratio = f"×{r.ratio:.3g}" if math.isfinite(r.ratio) else "–"
         limit_unit = "" if math.isfinite(r.ratio) else r.unit
+        limit = num(r.limit, limit_unit)
+        if r.kind in ("limit_changed", "criterion_off"):  # both limits, off spelt out
+            limit = (f"{num(r.base_limit, limit_unit) if math.isfinite(r.base_limit) else 'off'}"
+                     f" → {limit if math.isfinite(r.limit) else 'off'}")
         body.append(f'<tr class="{cls}"><td>{_run_cell(r, links)}</td>'
                     f"<td>{esc(r.category)}</td><td>{esc(r.kind)}</td>"
                     f"<td>{esc(r.metric)}</td><td class=\"num\">{esc(num(r.base, r.unit))}</td>"
                     f"<td class=\"num\">{esc(num(r.new, r.unit))}</td>"
                     f"<td class=\"num\">{esc(num(r.delta, r.unit))}</td>"
                     f"<td class=\"num\">{ratio}</td>"
-                    f"<td class=\"num\">{esc(num(r.limit, limit_unit))}</td>"
+                    f"<td class=\"num\">{esc(limit)}</td>"
                     f"<td>{esc(r.note)}</td></tr>")
     return f"<h2>{esc(title)} ({len(rows)})</h2><table>{head}{''.join(body)}</table>"
 
@@ -284,6 +302,22 @@ def _status_counts(runs: Sequence[RunEntry]) -> dict[str, dict[str, int]]:
     return out
 
 
+def _controller_code_rows(result: CompareResult) -> list[str]:
+    """One row per controller the manifests name: its code hash on each side (the
+    system under test's code; '–' where a side did not run it)."""
+    esc = html.escape
+    codes = [{c.name: c.sha256 for c in m.controllers} if m is not None else {}
+             for m in (result.base_manifest, result.new_manifest)]
+    rows = []
+    for name in sorted(set(codes[0]) | set(codes[1])):
+        b, n = (c.get(name, "") for c in codes)
+        cls = "warn" if b and n and b != n else ""
+        rows.append(f'<tr class="{cls}"><td>controller {esc(name)} code</td>'
+                    f"<td><code>{esc(b[:10] or '–')}</code></td>"
+                    f"<td><code>{esc(n[:10] or '–')}</code></td></tr>")
+    return rows
+
+
 def _provenance_table(result: CompareResult) -> str:
     esc = html.escape
     sides = [(m.provenance if m is not None else None) for m in (result.base_manifest,
@@ -300,6 +334,7 @@ def _provenance_table(result: CompareResult) -> str:
         bad = name in changed or (name == "short_sha" and "git_sha" in changed)
         rows.append(f"<tr class=\"{'warn' if bad else ''}\"><td>{esc(name)}</td>"
                     f"<td>{cells[0]}</td><td>{cells[1]}</td></tr>")
+    rows += _controller_code_rows(result)
     return ("<h2>Provenance</h2><table><tr><th></th><th>base</th><th>new</th></tr>"
             + "".join(rows) + "</table>")
 
@@ -340,7 +375,7 @@ def write_compare_html(result: CompareResult, path: Path, base: Sequence[RunEntr
         _provenance_table(result),
         "<h2>Status per controller</h2><table><tr><th>controller</th><th>base</th><th>new</th>"
         f"</tr>{''.join(ctrl_rows)}</table>",
-        _table(result.of_kind("fixed"), "Fixed", links),
+        _table(result.fixed_rows, "Fixed", links),
         _table(result.of_kind("missing", "new"), "Missing / new runs", links),
         _table(result.of_kind("status_change", "metric_nan"), "Other status / metric changes",
                links),

@@ -16,10 +16,12 @@ from reports.history.store import (
     DEFAULT_WAIT_S,
     AddResult,
     Baseline,
+    CatalogClash,
     HistoryLocked,
     NightConflict,
     NightInfo,
     NightRecord,
+    NoBaseline,
     QueryResult,
     add_night,
     baseline_night,
@@ -37,7 +39,8 @@ from reports.history.trends import (
 )
 
 __all__ = ["BASELINES", "DEFAULT_METRIC", "DEFAULT_WAIT_S", "FLAKY_ALTERNATIONS",
-           "SCHEMA_VERSION", "AddResult", "Baseline", "HistoryError", "HistoryLocked",
-           "NightConflict", "NightInfo", "NightRecord", "QueryResult", "ScenarioTrend",
-           "Trends", "add_night", "baseline_night", "ensure_schema", "load_trends",
-           "read_night", "run_sql", "scenario_trend", "trends_json", "write_history_page"]
+           "SCHEMA_VERSION", "AddResult", "Baseline", "CatalogClash", "HistoryError",
+           "HistoryLocked", "NightConflict", "NightInfo", "NightRecord", "NoBaseline",
+           "QueryResult", "ScenarioTrend", "Trends", "add_night", "baseline_night",
+           "ensure_schema", "load_trends", "read_night", "run_sql", "scenario_trend",
+           "trends_json", "write_history_page"]

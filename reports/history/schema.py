@@ -16,19 +16,35 @@ night's run directories are: ``compare --history`` reads them), ``night_sha256``
 content digest that tells a repeated add from a conflicting one) and ``added_at``;
 ``runs`` gains ``failure_modes`` (the failed criteria's metric names, a list; filled
 from ``failed_criteria`` for version-1 rows), ``limits`` (metric -> limit in force,
-a MAP) and ``run_dir``. docs/history.md describes every column.
+a MAP) and ``run_dir``.
+
+Version 3: ``nights`` gains ``catalog_id`` (the catalog's identity, which survives a new
+checkout: :func:`reports.manifest.catalog_identity`; filled for older nights by
+:func:`backfill_catalog_ids`) and ``catalog_origin``; ``runs`` gains the set-up digests
+``test_hash``, ``test_spec_hash``, ``limits_hash``, ``sut_hash``
+(:mod:`reports.identity`), ``controller_code`` and ``controller_params`` (the SUT's
+code hash and resolved options, JSON), ``failures`` (the failed criteria, typed: filled
+from ``failed_criteria`` for older rows) and the known-failure mark ``xfail`` /
+``xfail_strict``. docs/history.md describes every column.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 # The columns of ``runs`` that are not metrics (a metric of that name is refused).
 RUN_KEY_COLUMNS = ("night_id", "scenario", "scenario_hash", "controller", "status",
-                   "failed_criteria", "failure_modes", "limits", "run_dir")
+                   "failed_criteria", "failure_modes", "limits", "run_dir", "test_hash",
+                   "test_spec_hash", "limits_hash", "sut_hash", "controller_code",
+                   "controller_params", "failures", "xfail", "xfail_strict")
+# The type of ``runs.failures``: one entry per failed criterion (reports.record.Failure)
+FAILURE_STRUCT = ("STRUCT(criterion VARCHAR, metric VARCHAR, value DOUBLE, limit_value DOUBLE, "
+                  "bound VARCHAR, unit VARCHAR)")
 METRIC_NAME = re.compile(r"^[a-z][a-z0-9_]{0,62}$")
 
 V1_DDL = (
@@ -59,7 +75,50 @@ MIGRATIONS: dict[int, tuple[str, ...]] = {
         "ALTER TABLE runs ADD COLUMN run_dir VARCHAR NOT NULL DEFAULT ''",
         "INSERT INTO schema_version (version) VALUES (2)",
     ),
+    3: (
+        "ALTER TABLE nights ADD COLUMN catalog_id VARCHAR NOT NULL DEFAULT ''",
+        "ALTER TABLE nights ADD COLUMN catalog_origin VARCHAR NOT NULL DEFAULT ''",
+        *(f"ALTER TABLE runs ADD COLUMN {c} VARCHAR NOT NULL DEFAULT ''"
+          for c in ("test_hash", "test_spec_hash", "limits_hash", "sut_hash",
+                    "controller_code", "controller_params", "xfail")),
+        "ALTER TABLE runs ADD COLUMN xfail_strict BOOLEAN NOT NULL DEFAULT false",
+        f"ALTER TABLE runs ADD COLUMN failures {FAILURE_STRUCT}[]",
+        # results.csv's text is metric=value>limit (or <) per failed criterion
+        "UPDATE runs SET failures = CASE WHEN failed_criteria = '' THEN [] ELSE "
+        "list_transform(string_split(failed_criteria, ';'), lambda f: struct_pack("
+        "criterion := '', metric := regexp_extract(f, '^[^=]+'), "
+        "value := TRY_CAST(regexp_extract(f, '=([^<>]+)[<>]', 1) AS DOUBLE), "
+        "limit_value := TRY_CAST(regexp_extract(f, '[<>](.*)$', 1) AS DOUBLE), "
+        "bound := CASE WHEN contains(f, '>') THEN 'max' ELSE 'min' END, unit := '')) END",
+        "INSERT INTO schema_version (version) VALUES (3)",
+    ),
 }
+
+
+def backfill_catalog_ids(con: Any, incoming: str = "") -> None:
+    """Version 3's ``nights.catalog_id`` for nights added before it, from their stored
+    catalog path: the file's identity when it is still there
+    (:func:`reports.manifest.catalog_identity`); else ``incoming`` (the identity of the
+    night being added) when the stored path ends with it (the same catalog from a
+    checkout since moved or removed); else the file's name. Their origin stays unknown
+    ('': never refused as another catalog)."""
+    from reports.manifest import catalog_identity
+
+    for (path,) in con.execute("SELECT DISTINCT catalog FROM nights WHERE catalog_id = ''"
+                               ).fetchall():
+        stored = Path(path)
+        if stored.is_file():
+            name = catalog_identity(stored).name
+        elif incoming and stored.as_posix().endswith("/" + incoming.lstrip("/")):
+            name = incoming
+        else:
+            name = stored.name or str(path)
+        con.execute("UPDATE nights SET catalog_id = ? WHERE catalog = ? AND catalog_id = ''",
+                    [name, path])
+
+
+# version -> what is done in Python after its statements, in the same transaction
+AFTER_MIGRATION: dict[int, Callable[[Any, str], None]] = {3: backfill_catalog_ids}
 
 
 class HistoryError(ValueError):
@@ -81,22 +140,27 @@ def schema_version(con: Any) -> int:
     return int(row[0]) if row is not None and row[0] is not None else 0
 
 
-def ensure_schema(con: Any, where: str = "") -> int:
-    """Bring an open read-write database to :data:`SCHEMA_VERSION`; returns the version
-    it had before (0: it was empty). Raises :class:`HistoryError` for a newer file."""
+def ensure_schema(con: Any, where: str = "", incoming_catalog: str = "") -> int:
+    """Bring an open read-write database to :data:`SCHEMA_VERSION`, one transaction per
+    version; returns the version it had before (0: it was empty). Raises
+    :class:`HistoryError` for a newer file. ``incoming_catalog``: the catalog identity
+    of the night about to be added (:func:`backfill_catalog_ids`)."""
     before = schema_version(con)
     if before > SCHEMA_VERSION:
         raise HistoryError(f"{where}: schema_version {before} was written by a newer hwyeval "
                            f"(this one reads up to {SCHEMA_VERSION}); nothing was changed")
-    steps: list[tuple[str, ...]] = []
+    steps: list[tuple[int, tuple[str, ...]]] = []
     if before == 0:
-        steps.append(V1_DDL)
-    steps.extend(MIGRATIONS[v] for v in range(max(before, 1) + 1, SCHEMA_VERSION + 1))
-    for statements in steps:
+        steps.append((1, V1_DDL))
+    steps.extend((v, MIGRATIONS[v]) for v in range(max(before, 1) + 1, SCHEMA_VERSION + 1))
+    for version, statements in steps:
         con.execute("BEGIN TRANSACTION")
         try:
             for sql in statements:
                 con.execute(sql)
+            after = AFTER_MIGRATION.get(version)
+            if after is not None:
+                after(con, incoming_catalog)
         except Exception:
             con.execute("ROLLBACK")
             raise

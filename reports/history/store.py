@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from reports.expectation import Xfail, xfail_of
 from reports.history.schema import (
     METRIC_NAME,
     SCHEMA_VERSION,
@@ -40,14 +41,21 @@ from reports.history.schema import (
     metric_columns,
     schema_version,
 )
+from reports.identity import (
+    CODE_KEY,
+    CONTENT_KEY,
+    CONTROLLER_KEY,
+    SetupDigests,
+    digests_of_run_json,
+)
 from reports.manifest import MANIFEST, read_manifest
 from reports.metrics.criteria import CRITERIA_METRICS
-from reports.record import RUN_JSON, iter_run_dirs
+from reports.record import RUN_JSON, Failure, iter_run_dirs
+from reports.record.codec import RecordError, decode_dataclass
 from reports.record.meta import STATUSES
 from reports.tables import collect_runs, results_frame
 
 RESULTS_CSV = "results.csv"
-CONTENT_KEY = "content_sha256"  # RunInfo.scenario_spec key of the scenario content hash
 DEFAULT_WAIT_S = 60.0
 
 
@@ -59,11 +67,22 @@ class NightConflict(HistoryError):
     """A night of that id is in the database with other content (exit 2)."""
 
 
+class CatalogClash(HistoryError):
+    """Another catalog of the same name (another origin) is in the database (exit 2)."""
+
+
+class NoBaseline(HistoryError):
+    """No earlier night of the catalog: nothing to compare against (not an error: the
+    first night of a history)."""
+
+
 @dataclass(frozen=True)
 class NightInfo:
     """One row of ``nights``. started_at: when the run started (timezone-aware);
     git_revision: '' when unknown; git_dirty: None when unknown; catalog: the catalog
-    file as the manifest names it; catalog_sha256: digest of the night's scenarios
+    file as the manifest names it; catalog_id / catalog_origin: its identity
+    (:func:`reports.manifest.catalog_identity`: what nights are grouped by; '' only
+    before a database is migrated); catalog_sha256: digest of the night's scenarios
     (name, controller, content hash; see :func:`catalog_digest`); out_dir: the output
     directory (absolute) the night was read from."""
 
@@ -76,6 +95,8 @@ class NightInfo:
     catalog_sha256: str = ""
     out_dir: str = ""
     git_dirty: bool | None = None
+    catalog_id: str = ""
+    catalog_origin: str = ""
 
     def __post_init__(self) -> None:
         if not self.night_id:
@@ -87,6 +108,34 @@ class NightInfo:
     @property
     def short_revision(self) -> str:
         return self.git_revision[:10] if self.git_revision else "unknown"
+
+    @property
+    def catalog_key(self) -> str:
+        """What the night's catalog is known by: its identity (its path before a
+        database is migrated)."""
+        return self.catalog_id or self.catalog
+
+    @property
+    def report(self) -> str:
+        """The night's report.html ('' when its output directory is unknown)."""
+        return str(Path(self.out_dir) / "report.html") if self.out_dir else ""
+
+
+@dataclass(frozen=True)
+class RunFacts:
+    """What the history keeps of a run beyond results.csv, read from its run.json:
+    ``scenario_hash`` (the content hash, '' unknown), ``limits`` (metric -> limit in
+    force), the set-up digests (:class:`reports.identity.SetupDigests`),
+    ``controller_code`` (its code hash) and ``controller_params`` (its resolved options,
+    canonical JSON), the typed ``failures`` and the known-failure mark."""
+
+    scenario_hash: str = ""
+    limits: tuple[tuple[str, float], ...] = ()
+    digests: SetupDigests = field(default_factory=lambda: SetupDigests("", "", "", ""))
+    controller_code: str = ""
+    controller_params: str = ""
+    failures: tuple[Failure, ...] = ()
+    xfail: Xfail | None = None
 
 
 @dataclass(frozen=True)
@@ -109,11 +158,14 @@ class NightRecord:
     metric_names: tuple[str, ...]
     values_2d: np.ndarray = field(repr=False)
     limits_2d: np.ndarray = field(repr=False)
+    facts: tuple[RunFacts, ...] = ()  # per run (empty: none known, e.g. built by hand)
 
     def __post_init__(self) -> None:
         n = len(self.scenarios)
+        if not self.facts:
+            object.__setattr__(self, "facts", (RunFacts(),) * n)
         for name in ("scenario_hashes", "controllers", "statuses", "failed_criteria",
-                     "failure_modes", "run_dirs"):
+                     "failure_modes", "run_dirs", "facts"):
             if len(getattr(self, name)) != n:
                 raise ValueError(f"NightRecord.{name}: {len(getattr(self, name))} entries "
                                  f"for {n} scenarios")
@@ -147,6 +199,9 @@ class NightRecord:
         for cols in (self.scenarios, self.scenario_hashes, self.controllers, self.statuses,
                      self.failed_criteria, self.metric_names):
             h.update("\x1e".join(cols).encode())
+        marks = [f.xfail.text if f.xfail is not None else "" for f in self.facts]
+        if any(marks):  # a night without marks keeps the digest it had before v3
+            h.update("\x1e".join(marks).encode())
         h.update(np.ascontiguousarray(self.values_2d, dtype=np.float64).tobytes())
         return h.hexdigest()
 
@@ -165,30 +220,42 @@ NOT_METRICS = ("scenario", "controller", "variant", "status", "failed_criteria",
                "run", "robustness_criterion")
 
 
-@dataclass(frozen=True)
-class RunKeys:
-    """What a night's row needs from a run's run.json beyond results.csv: the
-    scenario's content hash ('' unknown) and the limits in force per metric."""
-
-    scenario_hash: str = ""
-    limits: tuple[tuple[str, float], ...] = ()
-
-
-def run_keys(run_dir: Path) -> RunKeys:
-    """:class:`RunKeys` of a run directory, read from its run.json directly (the two
-    fields only: the typed reader takes ~20 ms a run, this ~0.3 ms); an unreadable
-    file gives empty keys (results.csv already reports that run as 'error')."""
+def _failures(raw: Any, path: Path) -> tuple[Failure, ...]:
+    if not isinstance(raw, list):
+        return ()
     try:
-        data = json.loads((run_dir / RUN_JSON).read_text(encoding="utf-8"))
-        spec = data["info"].get("scenario_spec") or {}
-        criteria = (data.get("verdict") or {}).get("criteria") or {}
+        return tuple(decode_dataclass(Failure, f, path, "verdict.failures") for f in raw)
+    except RecordError:
+        return ()
+
+
+def run_facts(run_dir: Path) -> RunFacts:
+    """:class:`RunFacts` of a run directory, read from its run.json directly (these
+    fields only: the typed reader takes ~20 ms a run, this well under 1 ms); an
+    unreadable file gives empty facts (results.csv already reports that run as
+    'error')."""
+    path = run_dir / RUN_JSON
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        info = data["info"]
+        spec = info.get("scenario_spec") or {}
+        verdict = data.get("verdict") or {}
+        criteria = verdict.get("criteria") or {}
+        content = spec.get(CONTENT_KEY, "")
+        params = info.get("controller_params") or info.get("controller_options") or {}
+        code = spec.get(CONTROLLER_KEY) or spec.get(CODE_KEY) or ""
+        digests = digests_of_run_json(info, criteria)
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return RunKeys()
-    content = spec.get(CONTENT_KEY, "") if isinstance(spec, dict) else ""
+        return RunFacts()
     limits = tuple((CRITERIA_METRICS[c][0], float(v)) for c, v in criteria.items()
                    if c in CRITERIA_METRICS and isinstance(v, int | float)
                    and not isinstance(v, bool))
-    return RunKeys(content if isinstance(content, str) else "", limits)
+    return RunFacts(scenario_hash=content if isinstance(content, str) else "", limits=limits,
+                    digests=digests, controller_code=str(code),
+                    controller_params=json.dumps(params, sort_keys=True, allow_nan=True,
+                                                 default=str),
+                    failures=_failures(verdict.get("failures"), path),
+                    xfail=xfail_of(spec if isinstance(spec, dict) else None))
 
 
 def failure_modes_of(failed_criteria: str) -> tuple[str, ...]:
@@ -235,11 +302,13 @@ def _metric_matrix(frame: pd.DataFrame) -> tuple[tuple[str, ...], np.ndarray]:
     return names, values.to_numpy(dtype=np.float64, na_value=np.nan)
 
 
-def read_night(out_dir: str | Path, night_id: str | None = None) -> NightRecord:
+def read_night(out_dir: str | Path, night_id: str | None = None,
+               catalog_name: str | None = None) -> NightRecord:
     """The night in ``out_dir``: its manifest, its results.csv rows (see
-    :func:`results_of`) and each run's :class:`RunKeys`. ``night_id`` defaults to
-    ``<catalog name>@<started>``. Raises :class:`HistoryError` when ``out_dir`` is not
-    a directory, has no readable manifest, has not finished, or holds no run."""
+    :func:`results_of`) and each run's :class:`RunFacts`. ``night_id`` defaults to
+    ``<catalog name>@<started>``; ``catalog_name`` (``--catalog-name``) replaces the
+    catalog's identity (the manifest's). Raises :class:`HistoryError` when ``out_dir``
+    is not a directory, has no readable manifest, has not finished, or holds no run."""
     out = Path(out_dir).resolve()
     if not out.is_dir():
         raise HistoryError(f"{out_dir}: no such output directory")
@@ -256,32 +325,34 @@ def read_night(out_dir: str | Path, night_id: str | None = None) -> NightRecord:
     frame = results_of(out, run_dirs)
     by_name = {d.name: d for d in run_dirs}
     dirs = [by_name[str(r)] for r in frame["run"]]
-    keys = [run_keys(d) for d in dirs]
+    facts = tuple(run_facts(d) for d in dirs)
     names, values = _metric_matrix(frame)
     index = {m: j for j, m in enumerate(names)}
     limits = np.full(values.shape, np.nan)
-    for i, k in enumerate(keys):
+    for i, k in enumerate(facts):
         for metric, limit in k.limits:
             if metric in index:
                 limits[i, index[metric]] = limit
     failed = tuple("" if pd.isna(f) else str(f) for f in frame["failed_criteria"])
     scenarios = tuple(str(s) for s in frame["scenario"])
     controllers = tuple(str(c) for c in frame["controller"])
-    hashes = tuple(k.scenario_hash for k in keys)
+    hashes = tuple(k.scenario_hash for k in facts)
     prov = manifest.provenance
+    identity = manifest.identity()
     info = NightInfo(
         night_id=night_id or f"{manifest.catalog_name}@{manifest.started}",
         started_at=parse_started(manifest.started, str(out / MANIFEST)),
         git_revision=prov.git_sha, git_dirty=prov.git_dirty,
         hwyeval_version=prov.hwyeval_version, host=prov.host, catalog=manifest.catalog,
-        catalog_sha256=catalog_digest(scenarios, controllers, hashes), out_dir=str(out))
+        catalog_sha256=catalog_digest(scenarios, controllers, hashes), out_dir=str(out),
+        catalog_id=catalog_name or identity.name, catalog_origin=identity.origin)
     try:
         return NightRecord(
             info=info, scenarios=scenarios, scenario_hashes=hashes, controllers=controllers,
             statuses=tuple(str(s) for s in frame["status"]), failed_criteria=failed,
             failure_modes=tuple(failure_modes_of(f) for f in failed),
             run_dirs=tuple(str(d) for d in dirs), metric_names=names, values_2d=values,
-            limits_2d=limits)
+            limits_2d=limits, facts=facts)
     except ValueError as exc:
         raise HistoryError(f"{out / RESULTS_CSV}: {exc}") from exc
 
@@ -345,6 +416,10 @@ class AddResult:
     new_metric_columns: tuple[str, ...] = ()
 
 
+_FAILURE_TYPE_FIELDS = (("criterion", "string"), ("metric", "string"), ("value", "float64"),
+                        ("limit_value", "float64"), ("bound", "string"), ("unit", "string"))
+
+
 def _runs_table(night: NightRecord, columns: Sequence[str]) -> Any:
     import pyarrow as pa
 
@@ -355,6 +430,8 @@ def _runs_table(night: NightRecord, columns: Sequence[str]) -> Any:
         row = night.limits_2d[i]
         keys = [m for m, j in index.items() if not math.isnan(row[j])]
         limits.append(list(zip(keys, [float(row[index[k]]) for k in keys], strict=True)))
+    facts = night.facts
+    failure = pa.struct([(name, getattr(pa, kind)()) for name, kind in _FAILURE_TYPE_FIELDS])
     data: dict[str, Any] = {
         "night_id": pa.array([night.info.night_id] * n, pa.string()),
         "scenario": pa.array(night.scenarios, pa.string()),
@@ -366,6 +443,19 @@ def _runs_table(night: NightRecord, columns: Sequence[str]) -> Any:
                                   pa.list_(pa.string())),
         "limits": pa.array(limits, pa.map_(pa.string(), pa.float64())),
         "run_dir": pa.array(night.run_dirs, pa.string()),
+        "test_hash": pa.array([f.digests.test for f in facts], pa.string()),
+        "test_spec_hash": pa.array([f.digests.test_spec for f in facts], pa.string()),
+        "limits_hash": pa.array([f.digests.limits for f in facts], pa.string()),
+        "sut_hash": pa.array([f.digests.sut for f in facts], pa.string()),
+        "controller_code": pa.array([f.controller_code for f in facts], pa.string()),
+        "controller_params": pa.array([f.controller_params for f in facts], pa.string()),
+        "failures": pa.array([[{"criterion": x.criterion, "metric": x.metric, "value": x.value,
+                                "limit_value": x.limit, "bound": x.bound, "unit": x.unit}
+                               for x in f.failures] for f in facts], pa.list_(failure)),
+        "xfail": pa.array([f.xfail.reason if f.xfail is not None else "" for f in facts],
+                          pa.string()),
+        "xfail_strict": pa.array([bool(f.xfail is not None and f.xfail.strict)
+                                  for f in facts], pa.bool_()),
     }
     for name in columns:
         j = index.get(name)
@@ -374,19 +464,23 @@ def _runs_table(night: NightRecord, columns: Sequence[str]) -> Any:
     return pa.table(data)
 
 
-def add_night(db: str | Path, night: NightRecord, wait_s: float = DEFAULT_WAIT_S) -> AddResult:
+def add_night(db: str | Path, night: NightRecord, wait_s: float = DEFAULT_WAIT_S,
+              named: bool = False) -> AddResult:
     """Add ``night`` to ``db`` (created, or migrated to the current schema, first).
 
     The same night (same id, same content digest) a second time changes nothing and
     says so (``added`` False); the same id with other content raises
-    :class:`NightConflict`. Everything of a night is written in one transaction."""
+    :class:`NightConflict`. A night whose catalog identity is already in the database
+    from another origin (another repository, or another file outside git) raises
+    :class:`CatalogClash`, unless the identity was ``named`` explicitly
+    (``--catalog-name``). Everything of a night is written in one transaction."""
     import duckdb
 
     db = Path(db)
     with locked(db, wait_s):
         con = connect(db, read_only=False)
         try:
-            return _add(con, db, night)
+            return _add(con, db, night, named)
         except duckdb.Error as exc:
             raise HistoryError(f"{db}: adding night {night.info.night_id!r} failed, nothing "
                                f"of it was written ({type(exc).__name__}: {exc})") from exc
@@ -394,9 +488,28 @@ def add_night(db: str | Path, night: NightRecord, wait_s: float = DEFAULT_WAIT_S
             con.close()
 
 
-def _add(con: Any, db: Path, night: NightRecord) -> AddResult:
+def _check_origin(con: Any, db: Path, info: NightInfo) -> None:
+    """:class:`CatalogClash` when the catalog's identity is in the database from another
+    known origin."""
+    if not info.catalog_origin:
+        return
+    row = con.execute("SELECT catalog, catalog_origin FROM nights WHERE catalog_id = ? AND "
+                      "catalog_origin <> '' AND catalog_origin <> ? ORDER BY started_at DESC "
+                      "LIMIT 1", [info.catalog_id, info.catalog_origin]).fetchone()
+    if row is not None:
+        raise CatalogClash(
+            f"{db}: catalog {info.catalog_id!r} of {info.catalog} (origin "
+            f"{info.catalog_origin[:24]}) is another catalog than the {info.catalog_id!r} "
+            f"in the database (from {row[0]}, origin {row[1][:24]}); nothing was added: give "
+            "--catalog-name OTHER to keep it apart, or --catalog-name "
+            f"{info.catalog_id} to file it with them")
+
+
+def _add(con: Any, db: Path, night: NightRecord, named: bool = False) -> AddResult:
     """:func:`add_night` on an open connection, under the lock."""
-    before = ensure_schema(con, str(db))
+    before = ensure_schema(con, str(db), night.info.catalog_key)
+    if not named:
+        _check_origin(con, db, night.info)
     row = con.execute("SELECT night_sha256 FROM nights WHERE night_id = ?",
                       [night.info.night_id]).fetchone()
     if row is not None:
@@ -414,9 +527,11 @@ def _add(con: Any, db: Path, night: NightRecord) -> AddResult:
         con.execute(
             "INSERT INTO nights (night_id, started_at, git_revision, hwyeval_version, "
             "host, catalog, git_dirty, catalog_sha256, out_dir, night_sha256, "
-            "added_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, current_timestamp)",
+            "added_at, catalog_id, catalog_origin) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+            "current_timestamp, ?, ?)",
             [i.night_id, i.started_at, i.git_revision, i.hwyeval_version, i.host,
-             i.catalog, i.git_dirty, i.catalog_sha256, i.out_dir, night.sha256])
+             i.catalog, i.git_dirty, i.catalog_sha256, i.out_dir, night.sha256,
+             i.catalog_key, i.catalog_origin])
         con.execute("INSERT INTO runs BY NAME SELECT * FROM incoming_runs")
         con.unregister("incoming_runs")
     except Exception:
@@ -480,23 +595,28 @@ def run_sql(db: str | Path, sql: str, wait_s: float = DEFAULT_WAIT_S) -> QueryRe
 
 def night_infos(con: Any, catalog: str | None = None, exact: bool = False
                 ) -> list[NightInfo]:
-    """The nights (of ``catalog``: its path as the manifest names it, or — unless
-    ``exact`` — its stem), in start order."""
+    """The nights (of ``catalog``: see :func:`catalog_matches`), in start order."""
     rows = con.execute("SELECT night_id, started_at, git_revision, hwyeval_version, host, "
-                       "catalog, catalog_sha256, out_dir, git_dirty FROM nights "
-                       "ORDER BY started_at, night_id").fetchall()
+                       "catalog, catalog_sha256, out_dir, git_dirty, catalog_id, "
+                       "catalog_origin FROM nights ORDER BY started_at, night_id").fetchall()
     infos = [NightInfo(night_id=r[0], started_at=_aware(r[1]), git_revision=r[2],
                        hwyeval_version=r[3], host=r[4], catalog=r[5], catalog_sha256=r[6],
-                       out_dir=r[7], git_dirty=r[8]) for r in rows]
+                       out_dir=r[7], git_dirty=r[8], catalog_id=r[9], catalog_origin=r[10])
+             for r in rows]
     if catalog is None:
         return infos
-    return [i for i in infos if catalog_matches(i.catalog, catalog, exact)]
+    return [i for i in infos if catalog_matches(i, catalog, exact)]
 
 
-def catalog_matches(stored: str, wanted: str, exact: bool = False) -> bool:
-    """``wanted`` names the stored catalog: the same path (resolved) or, unless
-    ``exact``, the same stem."""
-    if stored == wanted or (not exact and Path(stored).stem == wanted):
+def catalog_matches(night: NightInfo, wanted: str, exact: bool = False) -> bool:
+    """``wanted`` names the night's catalog: its identity, or (``--catalog``'s
+    conveniences, unless ``exact``) the path it was run from (resolved) or its stem."""
+    if night.catalog_key == wanted:
+        return True
+    if exact:
+        return False
+    stored = night.catalog
+    if stored == wanted or Path(stored).stem == wanted:
         return True
     try:
         return Path(stored).resolve() == Path(wanted).resolve()
@@ -531,10 +651,12 @@ class Baseline:
 
 def baseline_night(db: str | Path, new_dir: str | Path, mode: str = "last",
                    wait_s: float = DEFAULT_WAIT_S) -> Baseline:
-    """The last night of NEW's catalog that started before NEW (``last``), or the last
-    such night in which every run passed (``last-pass``); NEW itself is never its own
-    baseline. :class:`HistoryError` when NEW has no manifest, no night qualifies, or
-    the night's directory no longer exists."""
+    """The last night of NEW's catalog (its identity, :meth:`Manifest.identity`) that
+    started before NEW (``last``), or the last such night in which every run passed
+    (``last-pass``); NEW itself is never its own baseline. :class:`NoBaseline` when the
+    catalog has no earlier night at all (its first night); :class:`HistoryError` when
+    NEW has no manifest, no earlier night passed (``last-pass``), or the night's
+    directory no longer exists."""
     if mode not in BASELINES:
         raise HistoryError(f"--baseline {mode!r}: expected one of {', '.join(BASELINES)}")
     new = Path(new_dir).resolve()
@@ -543,15 +665,19 @@ def baseline_night(db: str | Path, new_dir: str | Path, mode: str = "last",
         raise HistoryError(f"{new / MANIFEST}: missing or unreadable (the catalog of NEW "
                            "picks the baseline night)")
     started = parse_started(manifest.started, str(new / MANIFEST))
+    catalog = manifest.identity().name
     with reading(db, wait_s) as con:
-        nights = [n for n in night_infos(con, manifest.catalog, exact=True)
-                  if n.started_at < started and Path(n.out_dir) != new]
-        if mode == "last-pass":
-            nights = [n for n in nights if night_passed(con, n.night_id)]
-    if not nights:
-        what = "night in which every run passed" if mode == "last-pass" else "night"
-        raise HistoryError(f"{db}: no {what} of catalog {manifest.catalog} before "
-                           f"{manifest.started}: nothing to compare against")
+        earlier = [n for n in night_infos(con, catalog, exact=True)
+                   if n.started_at < started and Path(n.out_dir) != new]
+        nights = [n for n in earlier if night_passed(con, n.night_id)] \
+            if mode == "last-pass" else earlier
+    if not earlier:
+        raise NoBaseline(f"{db}: no earlier night of catalog {catalog!r} before "
+                         f"{manifest.started}: nothing to compare against")
+    if not nights:  # earlier nights, none passed: a gate on last-pass has no baseline
+        raise HistoryError(f"{db}: no earlier night of catalog {catalog!r} in which every "
+                           f"run passed ({len(earlier)} earlier nights): nothing to compare "
+                           "against (--baseline last compares with the night before)")
     night = nights[-1]
     out = Path(night.out_dir)
     if not night.out_dir or not out.is_dir():

@@ -1,11 +1,16 @@
 """The failures list: what a reader of a nightly report looks at first.
 
-One row per run that did not pass (errors and timeouts first, then failures, by
-scenario): status, scenario (linked to its page's failures), variant, the first
-failed criterion with its value against the limit (units) and when (an off-road
-failure also names the boundary crossed and by how much), how many more failed, and
-the run's ``.rrd``. An error or timeout row carries the exception's
-last line instead of a criterion.
+One row per run that fails the night (errors and timeouts first, then failures by
+severity): status, scenario (linked to its page's failures), variant, its worst failed
+criterion (the largest relative excess, :func:`severity`) with its value against the
+limit (units), when, and that excess — one criterion per row, so the excess beside a
+criterion is its own (an off-road failure also names the boundary crossed and by how
+much) — how many more failed, and the run's ``.rrd``. An error or timeout row carries
+the exception's last line instead of a criterion; a strict known failure that passed
+says "fixed: remove the xfail".
+
+Known failures (``xfail``, :mod:`reports.expectation`) that failed as expected are not
+in that list: they are in their own section under it (:func:`known_failures_section`).
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ import math
 from collections.abc import Sequence
 
 from reports.charts import esc, fmt
+from reports.expectation import XPASSED
 from reports.html.links import Links
 from reports.record import Failure, MetricValue
 from reports.tables import RunEntry
@@ -99,13 +105,20 @@ def _run_severity(r: RunEntry) -> float:
     return severity(worst) if worst is not None else 0.0
 
 
+def _group(r: RunEntry) -> str:
+    worst = _worst(r)
+    if worst is not None:
+        return worst.criterion
+    return XPASSED if r.expectation == XPASSED else r.status
+
+
 def triage_section(bad: Sequence[RunEntry]) -> str:
-    """The failures grouped: per first failed criterion (or error/timeout), the number
+    """The failures grouped: per worst failed criterion (or error/timeout), the number
     of runs and of families, the worst relative excess, and per family the count; the
     largest groups first. A 300-run night's 90 failures read as a few groups."""
     groups: dict[str, list[RunEntry]] = {}
     for r in bad:
-        key = r.failures[0].criterion if r.status == "fail" and r.failures else r.status
+        key = _group(r)
         groups.setdefault(key, []).append(r)
     rows = []
     for key, members in sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0])):
@@ -122,46 +135,84 @@ def triage_section(bad: Sequence[RunEntry]) -> str:
                     f'<td class="num" data-sort="{sort}">'
                     f"{esc(excess_text(worst)) if worst is not None else ''}</td>"
                     f"<td>{fam}</td></tr>")
-    return ('<table class="triage sortable"><thead><tr><th>first failed criterion</th>'
+    return ('<table class="triage sortable"><thead><tr><th>worst failed criterion</th>'
             "<th>runs</th><th>families</th><th>worst excess</th><th>families (runs)</th>"
             "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>")
+
+
+def _failure_cells(r: RunEntry) -> str:
+    """The row's criterion, value vs limit, when and how many more: of its worst failure
+    (the one whose excess the row shows), or the error / the unexpected pass."""
+    worst = _worst(r)
+    if worst is not None:
+        more = len(r.failures) - 1
+        detail = failure_detail(worst, r.metrics)
+        shown = f'<br><span class="meta">{esc(detail)}</span>' if detail else ""
+        return (f"<td>{esc(worst.criterion)}</td><td class=\"num\">{value_vs_limit(worst)}"
+                f"{shown}</td><td>{esc(when(worst))}</td><td>{f'+{more}' if more else ''}</td>")
+    if r.expectation == XPASSED and r.xfail is not None:
+        return (f'<td colspan="3">unexpected pass (strict xfail: {esc(r.xfail.reason)}): '
+                "fixed: remove the xfail</td><td></td>")
+    return (f'<td colspan="3" class="err1">{esc(last_line(r.error) or r.status)}</td>'
+            f"<td>{f'+{len(r.failures)}' if r.failures else ''}</td>")
 
 
 def failures_section(runs: Sequence[RunEntry], links: Links) -> str:
     """The index's failures list (module doc), the first section under the header:
     grouped by criterion and family (:func:`triage_section`), then one row per run,
     errors and timeouts first, then by severity (the worst relative excess first)."""
-    bad = sorted((r for r in runs if r.status != "pass"),
+    bad = sorted((r for r in runs if r.fails_night),
                  key=lambda r: (STATUS_ORDER.get(r.status, 9), -_run_severity(r), r.scenario,
                                 r.label))
     if not bad:
+        expected = sum(1 for r in runs if r.expectation)
+        tail = f" ({expected} known failures below)" if expected else ""
         return ('<section id="failures"><h2>Failures</h2><p class="allpass">every one of '
-                f"the {len(runs)} runs passed</p></section>")
+                f"the {len(runs)} runs passed or failed as expected{tail}</p></section>"
+                if expected else '<section id="failures"><h2>Failures</h2><p class="allpass">'
+                f"every one of the {len(runs)} runs passed</p></section>")
     rows = []
     for r in bad:
         page = links.page_href(r.run_id)
-        head = (f"<td>{badge(r.status)}</td><td><a href=\"{esc(page)}#failures\">"
+        shown = XPASSED if r.expectation == XPASSED else r.status
+        head = (f"<td>{badge(shown)}</td><td><a href=\"{esc(page)}#failures\">"
                 f"{esc(r.scenario)}</a></td><td>{esc(r.label)}</td>")
-        if r.failures and r.status == "fail" or (r.failures and not r.error):
-            f = r.failures[0]
-            more = len(r.failures) - 1
-            detail = failure_detail(f, r.metrics)
-            shown = f'<br><span class="meta">{esc(detail)}</span>' if detail else ""
-            body = (f"<td>{esc(f.criterion)}</td><td class=\"num\">{value_vs_limit(f)}"
-                    f"{shown}</td><td>{esc(when(f))}</td><td>{f'+{more}' if more else ''}</td>")
-        else:
-            body = (f'<td colspan="3" class="err1">{esc(last_line(r.error) or r.status)}</td>'
-                    f"<td>{f'+{len(r.failures)}' if r.failures else ''}</td>")
-        rows.append(f'<tr class="{esc(r.status)}">{head}{body}'
+        w = _worst(r)
+        rows.append(f'<tr class="{esc(r.status)}">{head}{_failure_cells(r)}'
                     f'<td class="num" data-sort="{_sort_value(_run_severity(r))}">'
-                    f"{esc(excess_text(w)) if (w := _worst(r)) is not None else ''}</td>"
+                    f"{esc(excess_text(w)) if w is not None else ''}</td>"
                     f"<td>{log_link(r, links, from_page=False)}</td></tr>")
     triage = triage_section(bad) if len(bad) > 1 else ""
     return ('<section id="failures"><h2>Failures <span class="meta">'
-            f"({len(bad)} of {len(runs)} runs did not pass)</span></h2>{triage}"
+            f"({len(bad)} of {len(runs)} runs fail the night)</span></h2>{triage}"
             '<table class="failures sortable"><thead><tr><th>status</th><th>scenario</th>'
-            "<th>controller variant</th><th>first failed criterion</th><th>value vs limit</th>"
-            "<th>when</th><th>more</th><th>excess</th><th>Rerun log</th></tr></thead><tbody>"
+            "<th>controller variant</th><th>worst failed criterion</th><th>value vs limit</th>"
+            "<th>when</th><th>more</th><th>its excess</th><th>Rerun log</th></tr></thead>"
+            "<tbody>" + "".join(rows) + "</tbody></table></section>")
+
+
+def known_failures_section(runs: Sequence[RunEntry], links: Links) -> str:
+    """The known failures (xfail) of the night, apart from the failures: each with its
+    reason, whether strict, and what it did (failed as expected: its worst criterion; or
+    passed: fixed, remove the xfail). '' when none is marked."""
+    known = sorted((r for r in runs if r.xfail is not None), key=lambda r: r.scenario)
+    if not known:
+        return ""
+    rows = []
+    for r in known:
+        mark = r.xfail
+        w = _worst(r)
+        did = ("passed: fixed, remove the xfail" if r.expectation == XPASSED else
+               f"{w.criterion}: {value_vs_limit(w)}" if w is not None else
+               esc(last_line(r.error) or r.status))
+        rows.append(f'<tr><td>{badge(r.expectation or r.status)}</td><td><a href="'
+                    f'{esc(links.page_href(r.run_id))}">{esc(r.scenario)}</a></td>'
+                    f"<td>{esc(mark.reason if mark else '')}</td>"
+                    f"<td>{'strict' if mark is not None and mark.strict else ''}</td>"
+                    f"<td>{did}</td></tr>")
+    return ('<section id="known-failures"><h2>Known failures (xfail) <span class="meta">('
+            f"{len(known)})</span></h2><table class=\"failures\"><thead><tr><th>status</th>"
+            "<th>scenario</th><th>reason</th><th></th><th>this night</th></tr></thead><tbody>"
             + "".join(rows) + "</tbody></table></section>")
 
 

@@ -20,7 +20,13 @@ import numpy as np
 import pandas as pd
 
 from reports.charts import PALETTE, Series, esc, fmt, line_chart
-from reports.html.failures import STATUS_ORDER, badge, failures_section, log_link
+from reports.html.failures import (
+    STATUS_ORDER,
+    badge,
+    failures_section,
+    known_failures_section,
+    log_link,
+)
 from reports.html.links import Links
 from reports.html.style import CSS
 from reports.manifest import Manifest, not_run
@@ -269,6 +275,7 @@ def render_index(runs: Sequence[RunEntry], pools: Pools, links: Links, title: st
         '<a href="#runs">runs</a></nav></header><main>',
         not_run_section(not_run(manifest, [n for r in runs for n in (r.scenario, r.run_id)])),
         failures_section(runs, links),
+        known_failures_section(runs, links),
         matrix_tables(runs, links),
         summary_tables(summary_frame(runs, pools)),
         timing_section(runs, pools),

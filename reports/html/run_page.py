@@ -48,6 +48,17 @@ def _failures(run: RunEntry) -> str:
             f"{err}</section>")
 
 
+def xfail_line(run: RunEntry) -> str:
+    """The known-failure mark of a run page ('' without one, reports.expectation)."""
+    mark = run.xfail
+    if mark is None:
+        return ""
+    did = {"xfail": "failed as expected", "xpass": "passed: fixed, remove the xfail"}.get(
+        run.expectation, f"ended {run.status}: not the expected failure")
+    return (f'<p id="xfail" class="meta">{badge(run.expectation or run.status)} known failure '
+            f"({esc(mark.text)}): {esc(did)}</p>")
+
+
 def replay_line(run: RunEntry) -> str:
     """The recorded-traffic line of a run page ('' without recorded traffic)."""
     rec = run.record
@@ -91,6 +102,7 @@ def render_run_page(run: RunEntry, links: Links, index_title: str) -> str:
         f"{esc(index_title)}</a> · {log_link(run, links, from_page=True)} · "
         f"<a href=\"{esc(run_dir)}\">run directory</a> · <code>hwyeval view "
         f"{esc(run.run_dir.parent.name)}/{esc(run.run_dir.name)}</code></nav></header><main>",
-        _failures(run), replay_line(run), collision_disagreements(run), mark_line, "".join(views),
+        _failures(run), xfail_line(run), replay_line(run), collision_disagreements(run),
+        mark_line, "".join(views),
         time_series(run, marks), metrics_table(run),
         "</main></body></html>"])

@@ -1,6 +1,8 @@
 """The report's stylesheet (index inline; run pages share it as report.css)."""
 
-CSS = """
+from reports.charts import CHART_CSS
+
+CSS = CHART_CSS + """
 :root{--pass:#15803d;--fail:#dc2626;--error:#7c3aed;--timeout:#d97706}
 body{font:14px/1.45 system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0;
 color:#0f172a;background:#f1f5f9}
@@ -21,7 +23,8 @@ tr.all{font-weight:600;background:#f8fafc}
 padding:0 6px;font-size:12px;font-weight:600}
 .badge.pass{background:var(--pass)}.badge.fail{background:var(--fail)}
 .badge.error{background:var(--error)}.badge.timeout{background:var(--timeout)}
-.badge.nolog{background:#718096}
+.badge.nolog{background:#718096}.badge.xfail{background:#9f7a77}
+.badge.xpass{background:#2b7bb9}
 section.notrun{background:#fffbeb;border:1px solid #f59e0b;border-radius:6px;padding:4px 14px}
 details.run{background:#fff;border:1px solid #e2e8f0;border-radius:6px;margin:8px 0;
 padding:6px 12px}
@@ -32,12 +35,6 @@ margin:8px 0;font-size:12px}
 .grid div{display:flex;justify-content:space-between;border-bottom:1px dotted #e2e8f0}
 .grid div.bad{color:#b91c1c;font-weight:600}
 .grid span{color:#475569}.grid div.bad span{color:#b91c1c}
-svg{display:block;margin:6px 0;background:#fff}
-svg .ct{font-size:12px;font-weight:600;fill:#0f172a}
-svg .tick,svg .xt,svg .yt{font-size:10px;fill:#475569}svg .xt{text-anchor:middle}
-svg .yt{text-anchor:end}svg .legend{font-size:11px;font-weight:600}
-svg .lane{stroke:#fff;stroke-width:1;stroke-dasharray:8 6}
-svg .grid{stroke:#e8edf3;fill:none}svg .frame{fill:none;stroke:#cbd5e1}
 .cdfs{display:flex;flex-wrap:wrap;gap:8px}
 pre.err{background:#1e1b4b;color:#e0e7ff;padding:8px;overflow:auto;max-height:260px;
 font-size:12px}

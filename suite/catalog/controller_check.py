@@ -38,10 +38,12 @@ class ControllerChecker:
     def check(self, name: str, options: dict[str, Any]) -> list[tuple[str, str, Any]]:
         """[] if fine, else every problem as (sub-key, expected, got)."""
         if name not in self.known:
+            # A name near a built-in one is as likely a plug-in not loaded ("acc_keep"
+            # is two edits from "lane_keep"): the --plugin hint always comes first.
             close = difflib.get_close_matches(name, self.known, n=1)
-            hint = (f"; did you mean {close[0]!r}?" if close else
-                    "; a plug-in controller needs --plugin FILE.py (or MODULE) or an "
-                    "installed entry point: forgot --plugin?")
+            hint = ("; a plug-in controller needs --plugin FILE.py (or MODULE) or an "
+                    "installed entry point: forgot --plugin?"
+                    + (f" Or did you mean {close[0]!r}?" if close else ""))
             return [("name", f"a registered controller, one of {self.known}{hint}", name)]
         cache_key = json.dumps([name, options], sort_keys=True, default=repr)
         if cache_key in self._cache:

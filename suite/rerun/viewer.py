@@ -130,10 +130,13 @@ def has_display() -> bool:
 
 
 def open_logs(run_dirs_or_rrds: Iterable[Path | str], *,
-              failed_only_from: Path | None = None) -> int:
+              failed_only_from: Path | None = None, web_hint: str = "") -> int:
     """Open logs in the viewer (or print the command when there is no display).
 
     ``failed_only_from``: a catalog output directory; its failed runs are added.
+    ``web_hint``: the ``hwyeval view ... --web`` command to suggest without a display
+    (default: ``hwyeval view PATH --web`` for a single item; ``view`` takes one PATH,
+    so for several the caller says which command serves them, e.g. ``--failed``).
     Returns a process exit code: 0 when the viewer was started or the command printed,
     1 when there was nothing to open or the viewer could not start.
     """
@@ -150,8 +153,10 @@ def open_logs(run_dirs_or_rrds: Iterable[Path | str], *,
               "this directory (or with the output copied to the same relative place):")
         print("  " + shlex.join(cmd))
         print(f"  ({VIEWER_HINT})")
-        print("or serve them here to a browser: hwyeval view "
-              + " ".join(shlex.quote(portable_path(Path(i))) for i in items) + " --web")
+        hint = web_hint or (shlex.join(["hwyeval", "view", portable_path(Path(items[0])),
+                                        "--web"]) if len(items) == 1 else "")
+        if hint:
+            print(f"or serve them here to a browser: {hint}")
         return 0
     try:
         subprocess.Popen([*_rerun_executable(), *(str(p) for p in paths)],

@@ -1,4 +1,5 @@
-"""What produced a run's result, as hashes that ``--resume`` compares.
+"""What produced a run's result, as hashes that ``--resume`` compares and that name the
+system under test in ``compare`` and the history (:mod:`reports.identity`).
 
 A run is reproduced by its scenario (the content hash, :mod:`suite.run.info`), the code
 that simulated and judged it, and its controller. Two hashes stand for the code, kept in
@@ -7,11 +8,14 @@ that simulated and judged it, and its controller. Two hashes stand for the code,
 * ``code_sha256`` (:data:`CODE_KEY`): SHA-256 over the path and bytes of every ``.py``
   file of hwyeval's packages (``suite``, ``controllers``, ``reports``, ``sumo_nets``),
   as they are on disk: a commit, an uncommitted edit and an installed release each
-  give their own. It covers the built-in controllers and their parameter defaults.
-* ``controller_sha256`` (:data:`CONTROLLER_KEY`): for a plug-in controller, the same
-  over the source of the package (or the lone module) that defines its factory, plus
-  the distribution's name and version for an entry point; '' for a built-in one. Editing
-  one line of a ``--plugin`` file changes it.
+  give their own.
+* ``controller_sha256`` (:data:`CONTROLLER_KEY`): the controller's own code. For a
+  plug-in controller, the same over the source of the package (or the lone module) that
+  defines its factory, plus the distribution's name and version for an entry point:
+  editing one line of a ``--plugin`` file changes it. For a built-in one, over the
+  ``controllers`` package (every built-in controller, its behaviour layer, plant model
+  and parameter defaults live there; a change to the reports or the simulation loop
+  is not a change of the controller).
 
 The controller's options are in the content hash already; its resolved parameters
 follow from the options and the two hashes.
@@ -27,12 +31,12 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from controllers import registry
+from reports.identity import CODE_KEY, CONTROLLER_KEY
 
-CODE_KEY = "code_sha256"
-CONTROLLER_KEY = "controller_sha256"
 PACKAGES = ("suite", "controllers", "reports", "sumo_nets")
 
-__all__ = ["CODE_KEY", "CONTROLLER_KEY", "controller_sha256", "hwyeval_code_sha256"]
+__all__ = ["CODE_KEY", "CONTROLLER_KEY", "builtin_controllers_sha256", "controller_sha256",
+           "hwyeval_code_sha256"]
 
 
 def _hash_files(root: Path, files: Iterable[Path], extra: str = "") -> str:
@@ -44,13 +48,24 @@ def _hash_files(root: Path, files: Iterable[Path], extra: str = "") -> str:
     return digest.hexdigest()
 
 
+def _package_files(root: Path, packages: Iterable[str]) -> list[Path]:
+    return [f for pkg in packages for f in (root / pkg).rglob("*.py")
+            if "__pycache__" not in f.parts]
+
+
 @functools.cache
 def hwyeval_code_sha256() -> str:
     """The hash of hwyeval's own sources (module doc), computed once per process."""
     root = Path(__file__).resolve().parents[2]
-    files = [f for pkg in PACKAGES for f in (root / pkg).rglob("*.py")
-             if "__pycache__" not in f.parts]
-    return _hash_files(root, files)
+    return _hash_files(root, _package_files(root, PACKAGES))
+
+
+@functools.cache
+def builtin_controllers_sha256() -> str:
+    """The hash of the ``controllers`` package's sources (the built-in controllers'
+    code, module doc), computed once per process."""
+    root = Path(__file__).resolve().parents[2]
+    return _hash_files(root, _package_files(root, ("controllers",)), extra="built in\0")
 
 
 def _module_files(module_name: str) -> tuple[Path, list[Path]]:
@@ -72,10 +87,11 @@ def _module_files(module_name: str) -> tuple[Path, list[Path]]:
 
 
 def controller_sha256(name: str) -> str:
-    """The hash of plug-in controller ``name``'s source (module doc); '' when built in."""
+    """The hash of controller ``name``'s code (module doc): its plug-in source, or the
+    built-in controllers' package."""
     origin = registry.origin(name)
     if origin == "built in":
-        return ""
+        return builtin_controllers_sha256()
     module_name = registry.factory_module(name)
     root, files = _module_files(module_name)
     return _hash_files(root, files, extra=f"{origin}\0{module_name}\0")

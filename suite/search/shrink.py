@@ -28,7 +28,7 @@ from suite.catalog import Scenario
 from suite.search.loop import BatchRunner, TrialResult, result_of
 from suite.search.space import Family, Refused, build_point, shrink_name
 
-__all__ = ["Shrunk", "shrink_failures", "start_points"]
+__all__ = ["Shrunk", "shrink_bound", "shrink_failures", "start_points"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +49,16 @@ def start_points(family: Family, failures: Sequence[TrialResult]) -> dict[str, T
     for t in sorted(failures, key=lambda t: (family.distance(t.values), t.trial)):
         best.setdefault(t.mode, t)
     return dict(sorted(best.items()))
+
+
+def shrink_bound(family: Family, failures: Sequence[TrialResult], points: int = 4) -> int:
+    """At most how many runs the line searches of :func:`shrink_failures` take: per
+    failure mode, per parameter with a nominal value, ``points`` candidates (1 for a
+    choice). These runs come on top of the search's budget; announce them."""
+    per_mode = sum(1 if p.kind == "choice" else points
+                   for p, nominal in zip(family.params, family.nominal, strict=True)
+                   if nominal is not None)
+    return len(start_points(family, failures)) * per_mode
 
 
 def _candidates(family: Family, i: int, values: tuple[Any, ...], points: int) -> list[list[Any]]:
