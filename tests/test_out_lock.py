@@ -73,3 +73,171 @@ def test_a_second_run_into_the_same_out_exits_2_and_writes_nothing(tmp_path: Pat
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == [
         "junit.xml", "manifest.json", "report-runs", "report.html", "results.csv",
         "slow_one", "summary.csv"]
+
+
+# --- one lock for every command that writes a directory, keyed on the real path --------
+
+SEARCH_CATALOG = """
+[defaults]
+controller = "lane_keep"
+duration_s = 2.0
+step_s = 0.05
+[[scenario]]
+name = "fam"
+net = "straight_3lane"
+ego = { lane = 1, pos_m = 50.0, speed_mps = 25.0 }
+stalled = [ { lane = 1, pos_m = 400.0 } ]
+[scenario.search]
+"stalled.0.pos_m" = { min = 100.0, max = 900.0 }
+"""
+
+
+class _Holder:
+    """Another process holding the lock of ``out`` (as a running command does)."""
+
+    def __init__(self, out: Path) -> None:
+        self.proc = subprocess.Popen([sys.executable, "-c", (
+            "import time; from pathlib import Path; "
+            "from suite.exec.out_lock import out_dir_lock\n"
+            f"with out_dir_lock(Path({str(out)!r})):\n"
+            "    print('held', flush=True); time.sleep(120)")],
+            cwd=ROOT, stdout=subprocess.PIPE, text=True)
+        assert self.proc.stdout is not None and self.proc.stdout.readline().strip() == "held"
+
+    def stop(self) -> None:
+        self.proc.kill()
+        self.proc.wait()
+
+
+def _snapshot(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
+            if p.is_file()}
+
+
+def _published(root: Path) -> dict[str, bytes]:
+    """The files of ``root`` outside the staging directories of runs in flight."""
+    return {k: v for k, v in _snapshot(root).items() if not k.startswith(".")}
+
+
+def _commonroad_file(tmp_path: Path) -> Path:
+    pytest.importorskip("commonroad.common.writer.file_writer_xml")
+    from tests.test_import_commonroad_synthetic import Car, Lane, W, straight, write_file
+
+    ref = straight()
+    lanes = [Lane(100, ref, 0.0, 500.0, 0.0, left=101),
+             Lane(101, ref, 0.0, 500.0, W, right=100)]
+    return write_file(tmp_path / "DEU_Lock-1_1_T-1.xml", lanes,
+                      [Car(1001, ref, 150.0, 0.0, 27.0, 0, 50)],
+                      Car(9000, ref, 100.0, 0.0, 25.0, k1=50), 0.1)
+
+
+def _command(kind: str, tmp_path: Path, out: str) -> list[str]:
+    """The arguments of a command of ``kind`` that, if it ran, would write ``out`` (a
+    finished synthetic catalog output)."""
+    import tests.synthetic_runs as sr
+
+    if kind in ("run", "search", "search_compare"):
+        catalog = tmp_path / "cat.toml"
+        catalog.write_text(SEARCH_CATALOG)
+        if kind == "run":
+            return ["run", str(catalog), "--out", out, "--overwrite", "--no-log"]
+        extra = ["--compare", "random", "--seeds", "1"] if kind == "search_compare" else []
+        return ["search", str(catalog), "--out", out, "--budget", "1", "--overwrite",
+                "--no-log", *extra]
+    if kind == "compare":
+        base, new = sr.make_catalog(tmp_path / "base"), sr.make_catalog(tmp_path / "new")
+        return ["compare", str(base), str(new), "--out", out]
+    if kind == "report":
+        return ["report", out]
+    return ["import", "commonroad", str(_commonroad_file(tmp_path)), "--out", out]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("via_link", [False, True], ids=["path", "symlink"])
+@pytest.mark.parametrize("kind", ["run", "search", "search_compare", "import", "compare",
+                                  "report"])
+def test_every_command_that_writes_a_directory_is_refused_while_another_writes_it(
+        tmp_path: Path, kind: str, via_link: bool) -> None:
+    """A second search --overwrite into a running search's --out exited 0 and mixed its
+    runs in, a run --overwrite too, and a command through a symbolic link to the
+    directory was never refused: every writer now exits 2 naming the directory and the
+    holder's pid, and the directory is left as it was."""
+    import tests.synthetic_runs as sr
+
+    out = sr.make_catalog(tmp_path / "night")
+    (out / "manifest.json").write_text("{}")
+    link = tmp_path / "alias"
+    link.symlink_to(out, target_is_directory=True)
+    args = _command(kind, tmp_path, str(link if via_link else out))
+    before = _snapshot(out)
+    holder = _Holder(out)
+    try:
+        proc = subprocess.run([sys.executable, "-m", "suite", *args], cwd=ROOT,
+                              capture_output=True, text=True, timeout=300)
+    finally:
+        holder.stop()
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert str(holder.proc.pid) in proc.stderr and str(out) in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert _snapshot(out) == before
+
+
+def test_the_lock_is_the_real_directorys_and_reentrant_in_one_process(tmp_path: Path) -> None:
+    real = tmp_path / "real"
+    real.mkdir()
+    link = tmp_path / "link"
+    link.symlink_to(real, target_is_directory=True)
+    assert lock_path(link) == lock_path(real) == tmp_path / ".real.lock"
+    assert lock_path(tmp_path / "link" / ".." / "real") == lock_path(real)
+    with out_dir_lock(real), out_dir_lock(link):  # paper --run holds it around run
+        holder = subprocess.run([sys.executable, "-c", (
+            "from pathlib import Path; from suite.exec.out_lock import OutDirBusy, "
+            "out_dir_lock\n"
+            "try:\n"
+            f"    with out_dir_lock(Path({str(link)!r})): print('free')\n"
+            "except OutDirBusy: print('busy')")], cwd=ROOT, capture_output=True, text=True,
+            timeout=60)
+        assert holder.stdout.strip() == "busy"
+    with out_dir_lock(link):  # released when the outer block ended
+        pass
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_a_running_search_keeps_its_out_from_a_search_a_run_and_a_link(tmp_path: Path) -> None:
+    """The probe's three cases against a real search (its run held up by a step hung in C):
+    search --overwrite and run --overwrite into its --out, and run through a symbolic link
+    to it, exit 2; the search's directory holds nothing of theirs."""
+    from tests.reliability_support import Background, wait_for
+
+    catalog = tmp_path / "hang.toml"
+    catalog.write_text(SEARCH_CATALOG.replace('controller = "lane_keep"',
+                                              'controller = "hang_at_step_20"'))
+    other = tmp_path / "other.toml"
+    other.write_text(CATALOG)
+    plugin = str(ROOT / "tests" / "hang_plugin.py")
+    out = tmp_path / "search"
+    link = tmp_path / "alias"
+    link.symlink_to(out, target_is_directory=True)
+    first = Background("search", str(catalog), "--out", str(out), "--budget", "1",
+                       "--no-log", "--timeout", "60", "--plugin", plugin)
+    try:
+        wait_for(lambda: any(p.name.startswith(".partial-") for p in out.iterdir())
+                 if out.is_dir() else False, 120.0, "the search's run to start")
+        before = _published(out)
+        seconds = [
+            ["search", str(catalog), "--out", str(out), "--budget", "1", "--overwrite",
+             "--no-log", "--plugin", plugin],
+            ["run", str(other), "--out", str(out), "--overwrite", "--no-log"],
+            ["run", str(other), "--out", str(link), "--overwrite", "--no-log"],
+        ]
+        codes = [subprocess.run([sys.executable, "-m", "suite", *args], cwd=ROOT,
+                                capture_output=True, text=True, timeout=300).returncode
+                 for args in seconds]
+        assert codes == [2, 2, 2]
+        assert _published(out) == before
+    finally:
+        first.proc.send_signal(2)  # SIGINT: the search stops in order
+        code = first.wait(120.0)
+    assert code == 130, first.out + first.err
+    assert not (out / "slow_one").exists()

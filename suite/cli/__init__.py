@@ -3,7 +3,7 @@
     hwyeval list CATALOG [--filter GLOB] [--plugin MODULE ...]
     hwyeval run CATALOG --out DIR [--resume | --overwrite] [--jobs N] [--filter GLOB]
                 [--no-log] [--timeout SECONDS] [--executor local|ray] [--ray-address ADDR]
-                [--plugin MODULE ...]
+                [--max-memory-mb MB] [--plugin MODULE ...]
     hwyeval search CATALOG --out DIR --budget N [--sampler tpe|cmaes|random|qmc] [--seed S]
                    [--jobs J] [--resume | --overwrite] [--no-log] [--executor local|ray]
     hwyeval history add DB RUNDIR ... | hwyeval history DB [--out DIR] [--json] [--sql Q]
@@ -22,8 +22,10 @@ scenario failed, errored or timed out (``search``: a failure was found; ``bench`
 target missed; ``compare``: a behaviour regression, or a timing slowdown with
 ``--timing-gate``), 2 invalid input: nothing was run or compared (a bad argument,
 catalog or plug-in, a missing path, an empty baseline, an output directory that is not
-empty without ``--resume`` or ``--overwrite``); ``run`` stopped by SIGINT (Ctrl-C) or
-SIGTERM: 130 or 143, after writing the reports of what
+empty without ``--resume`` or ``--overwrite``, or that another hwyeval command is
+writing, a Ray address that does not answer, a damaged search journal); ``search``: 3
+no failure found but some runs ended in error or timeout (not conclusive); ``run``
+stopped by SIGINT (Ctrl-C) or SIGTERM: 130 or 143, after writing the reports of what
 finished (``--resume`` runs the rest; docs/reliability.md).
 """
 
@@ -46,8 +48,11 @@ from suite.cli.common import (
     EXIT_FAIL,
     EXIT_INPUT,
     EXIT_OK,
+    MEMORY_HELP,
+    RAY_ADDRESS_HELP,
     UsageError,
     err,
+    memory_mib,
     plain_help,
     positive_int,
     positive_seconds,
@@ -104,7 +109,9 @@ def _run_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
                    help="wall-clock budget of every scenario (default: the catalog's "
                         "timeout_s, else 60 s + 10 x duration_s, at most 1 h)")
     s.add_argument("--executor", choices=["local", "ray"], default="local")
-    s.add_argument("--ray-address", default=None, help="ray.init address (e.g. auto)")
+    s.add_argument("--ray-address", default=None, help=RAY_ADDRESS_HELP)
+    s.add_argument("--max-memory-mb", type=memory_mib, default=None, metavar="MB",
+                   help=MEMORY_HELP)
     s.add_argument("--history", default=None, metavar="DB",
                    help="add the finished night to this history database (docs/history.md)")
     s.add_argument("--no-fail", action="store_true",

@@ -18,6 +18,7 @@ from suite.cli.common import (
     load_plugins,
     route_text,
     route_warnings,
+    writing_to,
 )
 
 
@@ -42,11 +43,12 @@ def cmd_report(args: argparse.Namespace) -> int:
     out = Path(args.dir)
     if not out.is_dir():
         raise UsageError(f"{out}: no such run directory")
-    try:
-        check_report_targets(out)
-    except OutputDirError as exc:
-        raise UsageError(str(exc)) from exc
-    paths = write_reports(out)
+    with writing_to(out):  # not while a run or search writes its own reports there
+        try:
+            check_report_targets(out)
+        except OutputDirError as exc:
+            raise UsageError(str(exc)) from exc
+        paths = write_reports(out)
     Output().line(f"report:  {paths.report_html}\nresults: {paths.results_csv}")
     return EXIT_OK
 
@@ -77,6 +79,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if args.timing_gate:
         tol = replace(tol, timing_gate=True)
     args.base = _compare_base(args)
+    if args.base is None:  # the first night of a history: nothing before it
+        return EXIT_OK
     for side in (args.base, args.new):
         if not Path(side).is_dir():
             raise UsageError(f"{side}: no such directory")
@@ -85,7 +89,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
                          "compared with itself shows nothing (give the baseline night)")
     out = Path(args.out) if args.out else default_compare_dir(Path(args.new))
     try:
-        result = compare_runs(Path(args.base), Path(args.new), out, tol)
+        with writing_to(out):  # one writer per directory (suite.exec.out_lock)
+            result = compare_runs(Path(args.base), Path(args.new), out, tol)
     except (NothingToCompare, DuplicateRuns) as exc:
         raise UsageError(str(exc)) from exc
     except UnknownTolerance as exc:
@@ -97,9 +102,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return int(result.exit_code)
 
 
-def _compare_base(args: argparse.Namespace) -> str:
+def _compare_base(args: argparse.Namespace) -> str | None:
     """BASE as given, or with ``--history DB`` the output directory of the baseline night
-    the database names (docs/history.md); input errors are UsageErrors (exit 2)."""
+    the database names (docs/history.md); None when the history holds no earlier night
+    of NEW's catalog (said so: the first night has nothing to regress against); input
+    errors are UsageErrors (exit 2)."""
     history, baseline = getattr(args, "history", None), getattr(args, "baseline", None)
     if history is None:
         if baseline is not None:
@@ -109,10 +116,18 @@ def _compare_base(args: argparse.Namespace) -> str:
         return str(args.base)
     if args.base is not None:
         raise UsageError("compare --history DB NEW: give NEW only (the database names BASE)")
-    from reports.history import HistoryError, baseline_night
+    from reports.history import HistoryError, NoBaseline, baseline_night
 
     try:
         found = baseline_night(Path(history), Path(args.new), baseline or "last")
+    except NoBaseline as exc:
+        line = f"{exc}; the first night of this catalog in the history (exit 0)"
+        if args.json:  # stdout stays JSON
+            print(line, file=sys.stderr)
+            Output().line('{"exit_code": 0, "baseline": null, "rows": []}')
+        else:
+            Output().line(line)
+        return None
     except HistoryError as exc:
         raise UsageError(str(exc)) from exc
     line = (f"baseline: night {found.night.night_id} ({found.mode}, revision "
@@ -138,7 +153,15 @@ def cmd_view(args: argparse.Namespace) -> int:
             return EXIT_OK
     if args.web:
         return serve_web(items, port=args.port, bind=args.bind)
-    return open_logs(items)
+    # the --web command to suggest is this one again (view takes one PATH, not the
+    # failed runs' directories it found)
+    import shlex
+
+    from suite.rerun.viewer import portable_path
+
+    web = ["hwyeval", "view", portable_path(target), *(["--failed"] if args.failed else []),
+           "--web"]
+    return open_logs(items, web_hint=shlex.join(web))
 
 
 def bench_options(args: argparse.Namespace) -> Any:

@@ -6,6 +6,8 @@ import argparse
 import math
 import os
 import sys
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -17,6 +19,33 @@ EXIT_INPUT = 2
 
 class UsageError(ValueError):
     """Invalid command-line input (exit code 2, the message without a traceback)."""
+
+
+@contextmanager
+def writing_to(out: Path) -> Iterator[None]:
+    """Hold the lock of the directory ``out`` the command writes
+    (:mod:`suite.exec.out_lock`, keyed on its real path) while the block runs: when
+    another process holds it, a UsageError (exit 2) naming the directory and that
+    process's pid, before anything is written. When not even the folder holding ``out``
+    can be created the block runs without the lock: the command cannot write there
+    either, and its own check of ``out`` says why."""
+    from suite.exec.out_lock import OutDirBusy, lock_path, out_dir_lock, real_out
+
+    try:
+        real_out(out).parent.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        yield
+        return
+    with ExitStack() as stack:
+        try:
+            stack.enter_context(out_dir_lock(out))
+        except OutDirBusy as exc:
+            raise UsageError(str(exc)) from exc
+        except OSError as exc:
+            raise UsageError(f"--out {out}: cannot create its lock file {lock_path(out)} "
+                             f"({exc.strerror or exc}); choose an --out in a writable "
+                             "folder") from exc
+        yield
 
 
 class Output:
@@ -58,6 +87,37 @@ def positive_int(text: str) -> int:
     return value
 
 
+def memory_mib(text: str) -> int:
+    """argparse type: a whole number of MiB >= 0 (``--max-memory-mb``; 0: no cap)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of MiB >= 0 (0: no cap), "
+                                         f"got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number of MiB >= 0, got {value}")
+    return value
+
+
+RAY_ADDRESS_HELP = ("the Ray cluster of --executor ray: host:port, ray://host:port or auto "
+                    "(the one Ray finds), checked before anything runs (exit 2 when it "
+                    "does not answer); default $RAY_ADDRESS, else a private local Ray")
+MEMORY_HELP = ("address-space cap of every scenario process [MiB]; a run over it is that "
+               "run's error (default: $HWYEVAL_MAX_MEMORY_MB, else half the machine's "
+               "memory, at least 8192; 0: no cap)")
+
+
+def memory_cap_of(args: argparse.Namespace) -> Any:
+    """The :class:`suite.exec.memory.MemoryCap` of a command: ``--max-memory-mb``, else
+    ``HWYEVAL_MAX_MEMORY_MB``, else the default; a bad variable is a UsageError."""
+    from suite.exec.memory import memory_cap_from
+
+    try:
+        return memory_cap_from(getattr(args, "max_memory_mb", None), os.environ)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from exc
+
+
 def positive_seconds(text: str) -> float:
     """argparse type: a finite number of seconds > 0."""
     try:
@@ -83,7 +143,7 @@ class Plugins:
 
 def executor_flags(args: argparse.Namespace) -> list[str]:
     """The flags a resume command repeats for how runs execute: ``--timeout``,
-    ``--executor``, ``--ray-address`` and every ``--plugin`` given."""
+    ``--executor``, ``--ray-address``, ``--max-memory-mb`` and every ``--plugin`` given."""
     parts: list[str] = []
     if args.timeout is not None:
         parts += ["--timeout", f"{args.timeout:g}"]
@@ -91,6 +151,8 @@ def executor_flags(args: argparse.Namespace) -> list[str]:
         parts += ["--executor", args.executor]
     if args.ray_address:
         parts += ["--ray-address", args.ray_address]
+    if getattr(args, "max_memory_mb", None) is not None:
+        parts += ["--max-memory-mb", str(args.max_memory_mb)]
     for plugin in args.plugin or []:
         parts += ["--plugin", plugin]
     return parts

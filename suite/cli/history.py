@@ -1,13 +1,15 @@
 """``hwyeval history``: many nights in one DuckDB database (docs/history.md).
 
-    hwyeval history add DB RUNDIR... [--night-id ID] [--wait SECONDS]
+    hwyeval history add DB RUNDIR... [--night-id ID] [--catalog-name NAME] [--wait SECONDS]
     hwyeval history DB [--out DIR] [--json] [--metric NAME] [--catalog C] [--nights N]
     hwyeval history DB --sql "SELECT ..."
 
 ``add`` adds each RUNDIR (a finished ``hwyeval run --out`` directory) as one night,
 creating the database or migrating it to the current schema first; a night that is
 there already with the same content is left as it is (said so, exit 0), one with the
-same id and other content is refused (exit 2). The second form writes the trend page
+same id and other content is refused (exit 2), and so is a night of another catalog
+that has the same name as one in the database (another repository, or another file
+outside git) unless ``--catalog-name`` names its catalog. The second form writes the trend page
 ``DIR/history.html`` and/or prints its content as JSON; ``--sql`` prints the result
 of a query on a read-only connection. Exit codes: 0 done, 2 bad input (a missing or
 unfinished directory, a conflicting night, a database locked longer than ``--wait``,
@@ -31,7 +33,7 @@ from suite.cli.common import (
 )
 
 DEFAULT_WAIT_S = 60.0
-USAGE = ("hwyeval history add DB RUNDIR... [--night-id ID] [--wait S]\n"
+USAGE = ("hwyeval history add DB RUNDIR... [--night-id ID] [--catalog-name NAME] [--wait S]\n"
          "       hwyeval history DB [--out DIR] [--json] [--metric M] [--catalog C] "
          "[--nights N]\n       hwyeval history DB --sql QUERY")
 
@@ -56,20 +58,27 @@ def add_history_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser])
                    help="only the last N nights (default: all)")
     s.add_argument("--night-id", default=None,
                    help="add: the night's id (default: <catalog name>@<started>; one RUNDIR)")
+    s.add_argument("--catalog-name", default=None, metavar="NAME",
+                   help="add: the catalog the nights belong to (default: the catalog's "
+                        "[catalog] name, else its path in its git repository, else its "
+                        "file name); given, another catalog of that name is not refused")
     s.add_argument("--wait", type=positive_seconds, default=DEFAULT_WAIT_S, metavar="SECONDS",
                    help="how long to wait for another writer (default 60 s)")
     s.set_defaults(func=cmd_history)
 
 
 def add_nights(db: Path, out_dirs: list[Path], night_id: str | None, wait_s: float,
-               text: Output) -> None:
+               text: Output, catalog_name: str | None = None) -> None:
     """Add each output directory as a night, one line per night saying what was done;
     the first that cannot be added stops with a UsageError (those before it stay)."""
     from reports.history import HistoryError, add_night, read_night
 
+    if catalog_name is not None and not catalog_name.strip():
+        raise UsageError("--catalog-name: expected a non-empty name")
     for out in out_dirs:
         try:
-            result = add_night(db, read_night(out, night_id), wait_s)
+            result = add_night(db, read_night(out, night_id, catalog_name), wait_s,
+                               named=catalog_name is not None)
         except HistoryError as exc:
             raise UsageError(str(exc)) from exc
         if result.migrated_from == 0:
@@ -98,9 +107,18 @@ def _cell(value: Any) -> str:
 
 
 def print_query(db: Path, sql: str, wait_s: float, text: Output) -> None:
-    """The query's columns and rows, tab-separated."""
+    """The query's columns and rows, tab-separated; no statement at all ("", ";", a
+    comment) is a UsageError."""
+    import duckdb
+
     from reports.history import HistoryError, run_sql
 
+    try:
+        empty = not duckdb.extract_statements(sql)
+    except duckdb.Error:  # a syntax error: run_sql reports it with DuckDB's message
+        empty = False
+    if empty:
+        raise UsageError(f"--sql {sql!r}: no SQL statement; give a query (SELECT ...)")
     try:
         result = run_sql(db, sql, wait_s)
     except HistoryError as exc:
@@ -113,9 +131,6 @@ def print_query(db: Path, sql: str, wait_s: float, text: Output) -> None:
 
 
 def cmd_history(args: argparse.Namespace) -> int:
-    from reports.history import DEFAULT_METRIC, HistoryError, load_trends, trends_json
-    from reports.history import write_history_page as write_page
-
     words: list[str] = args.words
     text = Output()
     if words[0] == "add":
@@ -125,7 +140,7 @@ def cmd_history(args: argparse.Namespace) -> int:
         if args.night_id and len(words) > 3:
             raise UsageError("history add: --night-id names one night; give one RUNDIR")
         add_nights(Path(words[1]), [Path(w) for w in words[2:]], args.night_id, args.wait,
-                   text)
+                   text, args.catalog_name)
         return EXIT_OK
     if len(words) != 1:
         raise UsageError(f"history: expected one DB (or 'add DB RUNDIR...'), got {words}")
@@ -135,6 +150,15 @@ def cmd_history(args: argparse.Namespace) -> int:
         return EXIT_OK
     if not args.out and not args.json:
         raise UsageError("history DB: give --out DIR (the trend page), --json or --sql")
+    show_trends(db, args, text)
+    return EXIT_OK
+
+
+def show_trends(db: Path, args: argparse.Namespace, text: Output) -> None:
+    """The trend page (``--out``) and/or its JSON (``--json``)."""
+    from reports.history import DEFAULT_METRIC, HistoryError, load_trends, trends_json
+    from reports.history import write_history_page as write_page
+
     try:
         trends = load_trends(db, args.metric or DEFAULT_METRIC, args.catalog, args.nights,
                              args.wait)
@@ -144,10 +168,10 @@ def cmd_history(args: argparse.Namespace) -> int:
         page = write_page(trends, Path(args.out))
         if not args.json:
             text.line(f"page: {page} ({len(trends.nights)} nights, {len(trends.failing)} "
-                      f"failing now, {len(trends.flaky)} flaky)")
+                      f"failing now, {len(trends.known_failures)} known failures, "
+                      f"{len(trends.flaky)} flaky)")
     if args.json:
         text.line(trends_json(trends))
-    return EXIT_OK
 
 
 def add_run_to_history(db: str, out: Path, text: Output) -> bool:

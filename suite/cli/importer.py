@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from suite.cli.common import EXIT_INPUT, EXIT_OK, Output, err
+from suite.cli.common import EXIT_INPUT, EXIT_OK, Output, err, writing_to
 
 
 def _metres(text: str) -> float:
@@ -24,6 +24,17 @@ def _metres(text: str) -> float:
             from None
     if not value > 0.0 or value == float("inf"):
         raise argparse.ArgumentTypeError(f"expected a finite length in metres > 0, got {text}")
+    return value
+
+
+def _obstacle_id(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an obstacle id (an integer), got "
+                                         f"{text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an obstacle id >= 0, got {value}")
     return value
 
 
@@ -40,6 +51,10 @@ def add_import_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
                    help="straight road added where the recorded road ends (default 1000)")
     c.add_argument("--approach-m", type=_metres, default=None, metavar="M",
                    help="straight road added where it begins (default 200)")
+    c.add_argument("--ego-obstacle", type=_obstacle_id, default=None, metavar="ID",
+                   help="make the recorded vehicle (dynamic obstacle) ID the ego: its first "
+                   "state is the ego's start, its track the ego's recorded trajectory "
+                   "(controller 'recorded'); one FILE only (docs/recorded.md)")
     c.set_defaults(func=cmd_import_commonroad)
 
 
@@ -60,11 +75,19 @@ def _line(r: object) -> str:
             f"{r.edges - r.recorded_edges} extension edges, {r.lanes} lanes, extended "
             f"{r.extension_m:g} m), {r.tracks_path.name} ({r.kept} vehicles kept, "
             f"{dropped or 'none'} dropped), ego lane {r.ego_lane} at {r.ego_pos_m:.1f} m "
-            f"({r.ego_lateral_m:+.2f} m off its centre), "
+            f"({r.ego_lateral_m:+.2f} m off its centre)"
+            f"{f', recorded ego {r.ego_track}' if r.ego_track else ''}, "
             f"{r.duration_s:g} s; {'; '.join(extra)} [{r.wall_s:.2f} s]")
 
 
 def cmd_import_commonroad(args: argparse.Namespace) -> int:
+    """The import under DIR's lock (suite.exec.out_lock): another command writing DIR is
+    refused (exit 2) before anything is read or written."""
+    with writing_to(Path(args.out)):
+        return _import_commonroad(args)
+
+
+def _import_commonroad(args: argparse.Namespace) -> int:
     from suite.importers.commonroad import ImportParams, import_files
     from suite.importers.commonroad.net_build import NetParams
 
@@ -73,9 +96,13 @@ def cmd_import_commonroad(args: argparse.Namespace) -> int:
                     upstream_extension_m=args.approach_m or net.upstream_extension_m,
                     speed_limit_mps=net.speed_limit_mps)
     out = Output()
+    if args.ego_obstacle is not None and len(args.files) != 1:
+        err(f"--ego-obstacle {args.ego_obstacle}: expected one FILE (obstacle ids are a "
+            f"file's own), got {len(args.files)}")
+        return EXIT_INPUT
     try:
         outcome = import_files([Path(f) for f in args.files], Path(args.out),
-                               ImportParams(net=net))
+                               ImportParams(net=net, ego_obstacle=args.ego_obstacle))
     except ImportError as exc:  # commonroad-io is not installed
         err(str(exc))
         return EXIT_INPUT

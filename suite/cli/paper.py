@@ -18,7 +18,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from suite.cli.common import EXIT_FAIL, EXIT_OK, Output, UsageError, positive_int
+from suite.cli.common import EXIT_FAIL, EXIT_OK, Output, UsageError, positive_int, writing_to
 
 # The checkout's catalog (an editable install's source tree), the default of --catalog.
 PAPER_CATALOG = Path(__file__).resolve().parents[2] / "catalogs" / "paper.toml"
@@ -49,6 +49,12 @@ def _run_catalog(catalog: str, out: Path, jobs: int) -> int:
 
 
 def cmd_paper(args: argparse.Namespace) -> int:
+    """The command under DIR's lock (suite.exec.out_lock), --run's run included."""
+    with writing_to(Path(args.dir)):
+        return _paper(args)
+
+
+def _paper(args: argparse.Namespace) -> int:
     from reports.paper import PaperError, results_markdown, write_paper
 
     out = Path(args.dir)

@@ -6,9 +6,10 @@ build the jobs (each with its wall-clock budget, :mod:`suite.exec.budget`, and i
 scenario's content hash), make the executor, prepare the directory (``--overwrite``
 empties it, ``--resume`` keeps what finished), write the manifest with the provenance,
 run the jobs with progress, write the reports, finish the manifest, print the short
-summary, add the night to ``--history DB`` if asked. Exit 0 when every scenario of
-the manifest passed (or with ``--no-fail``), 1 otherwise; 2 when the night could not
-be added to the history (the output is complete).
+summary, add the night to ``--history DB`` if asked. Exit 0 when no scenario of the
+manifest fails the night (or with ``--no-fail``), 1 otherwise: a known failure
+(``xfail``) that failed as expected does not fail it, a strict one that passed does; 2
+when the night could not be added to the history (the output is complete).
 
 SIGINT and SIGTERM stop the run in order (:mod:`suite.exec.signals`): nothing more
 starts, the running scenarios are ended, the reports are written for what finished,
@@ -38,7 +39,9 @@ from suite.cli.common import (
     executor_flags,
     load_catalog_for,
     load_plugins,
+    memory_cap_of,
     route_warnings,
+    writing_to,
 )
 
 WARMUP_NOTE = ("starting {n} worker(s): importing modules and loading numba kernels "
@@ -46,12 +49,16 @@ WARMUP_NOTE = ("starting {n} worker(s): importing modules and loading numba kern
 
 
 def build_jobs(scenarios: list[Any], out: Path, catalog_name: str, no_log: bool,
-               plugins: Plugins, timeout_s: float | None = None) -> list[Any]:
+               plugins: Plugins, timeout_s: float | None = None,
+               memory: Any = None) -> list[Any]:
     """One job per scenario: its budget (``--timeout``, else the catalog's, else the
     default from its duration), its content hash (each network and tracks file read once)
-    and the hashes of the code and of a plug-in controller (:mod:`suite.run.code_identity`)."""
+    and the hashes of the code and of a plug-in controller (:mod:`suite.run.code_identity`);
+    ``memory``: every scenario process's :class:`~suite.exec.memory.MemoryCap` (None:
+    the default)."""
     from suite.exec.budget import run_budget_s
     from suite.exec.executors import RunJob
+    from suite.exec.memory import MemoryCap
     from suite.run.code_identity import controller_sha256, hwyeval_code_sha256
     from suite.run.info import file_sha256, scenario_content_sha256, scenario_tracks_path
     from suite.run.options import RunOptions
@@ -80,7 +87,8 @@ def build_jobs(scenarios: list[Any], out: Path, catalog_name: str, no_log: bool,
         options = RunOptions(write_rrd=not no_log, catalog_name=catalog_name, timeout_s=budget,
                              content_sha256=content, code_sha256=code,
                              controller_sha256=controllers[sc.controller.name])
-        jobs.append(RunJob(sc, out.resolve(), options, budget, plugins.modules))
+        jobs.append(RunJob(sc, out.resolve(), options, budget, plugins.modules,
+                           memory if memory is not None else MemoryCap()))
     return jobs
 
 
@@ -93,6 +101,8 @@ def make_executor(args: argparse.Namespace, n_jobs: int) -> tuple[Any, int]:
             return RayExecutor(address=args.ray_address), n_jobs
         except (RuntimeError, ConnectionError, ValueError) as exc:
             raise UsageError(f"--executor ray: {exc}") from exc
+    if args.ray_address:
+        raise UsageError(f"--ray-address {args.ray_address}: only with --executor ray")
     workers = max(1, min(args.jobs or os.cpu_count() or 1, n_jobs))
     return LocalExecutor(jobs=workers), workers
 
@@ -100,17 +110,21 @@ def make_executor(args: argparse.Namespace, n_jobs: int) -> tuple[Any, int]:
 def start_manifest(args: argparse.Namespace, scenarios: list[Any], workers: int,
                    plugins: Plugins) -> Any:
     from controllers import registry
-    from reports.manifest import Manifest, now_iso
+    from reports.manifest import ControllerCode, Manifest, catalog_identity, now_iso
     from reports.provenance import collect
+    from suite.run.code_identity import controller_sha256
 
     used = sorted({sc.controller.name for sc in scenarios})
     plugin_names = tuple(f"{name} ({registry.origin(name)})" for name in used
                          if registry.origin(name) != "built in")
-    return Manifest(catalog=str(Path(args.catalog).resolve()),
-                    catalog_name=Path(args.catalog).stem,
+    catalog = Path(args.catalog).resolve()
+    identity = catalog_identity(catalog)  # what the history files the night under
+    return Manifest(catalog=str(catalog), catalog_name=Path(args.catalog).stem,
                     scenarios=tuple(sc.name for sc in scenarios), started=now_iso(),
                     jobs=workers, executor=args.executor, plugins=plugins.labels,
-                    provenance=collect(plugin_names))
+                    provenance=collect(plugin_names), catalog_id=identity.name,
+                    catalog_origin=identity.origin,
+                    controllers=tuple(ControllerCode(n, controller_sha256(n)) for n in used))
 
 
 def resume_command(args: argparse.Namespace) -> str:
@@ -192,19 +206,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
          warm: _EarlyWarmUp) -> int:
     """The run under the output directory's lock (suite.exec.out_lock): a second command
-    into the same --out is refused (exit 2) before it writes anything."""
-    from suite.exec.out_lock import OutDirBusy, out_dir_lock
-
-    out = Path(args.out)
-    try:
-        Path(os.path.abspath(out)).parent.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return _locked_run(args, out_text, plugins, warm)  # check_out_dir says why
-    try:
-        with out_dir_lock(out):
-            return _locked_run(args, out_text, plugins, warm)
-    except OutDirBusy as exc:
-        raise UsageError(str(exc)) from exc
+    into the same --out, or a link to it, is refused (exit 2) before it writes anything."""
+    with writing_to(Path(args.out)):
+        return _locked_run(args, out_text, plugins, warm)
 
 
 def _locked_run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
@@ -229,7 +233,7 @@ def _locked_run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
     except OutputDirError as exc:
         raise UsageError(str(exc)) from exc
     jobs = build_jobs(scenarios, out, Path(args.catalog).stem, args.no_log, plugins,
-                      args.timeout)
+                      args.timeout, memory_cap_of(args))
     executor, workers = make_executor(args, len(jobs))
     with stop_on_signals() as stop:
         prepare_out_dir(plan)
@@ -264,20 +268,37 @@ def _locked_run(args: argparse.Namespace, out_text: Output, plugins: Plugins,
                       f"{resume_command(args)}")
         return stop.exit_code
     write_manifest(out, manifest.finish())
-    for line in short_summary(records, time.perf_counter() - t0):
-        out_text.line(line)
+    wall_s = time.perf_counter() - t0
     if paths is not None:
         out_text.line(f"report:  {paths.report_html}\nresults: {paths.results_csv}")
+    history_ok = True
     if getattr(args, "history", None):
         from suite.cli.history import add_run_to_history
 
-        if not add_run_to_history(args.history, out, out_text):
-            return EXIT_INPUT
-    if paths is None:
-        return EXIT_FAIL
-    if all(r.status == "pass" for r in records):
-        return EXIT_OK
-    if getattr(args, "no_fail", False):
-        out_text.line("--no-fail: exit 0 although some scenario did not pass")
-        return EXIT_OK
-    return EXIT_FAIL
+        history_ok = add_run_to_history(args.history, out, out_text)
+    code, meaning = exit_of(records, reports_written=paths is not None,
+                            history_ok=history_ok, no_fail=getattr(args, "no_fail", False),
+                            out=out)
+    for line in short_summary(records, wall_s, meaning):  # last: it says what the code means
+        out_text.line(line)
+    return code
+
+
+def exit_of(records: list[Any], *, reports_written: bool, history_ok: bool, no_fail: bool,
+            out: Path) -> tuple[int, str | None]:
+    """The exit code of a finished run and, when not the runs alone decide it, what it
+    means (None: the summary's own words). A known failure that failed as expected does
+    not fail the night; a strict one that passed does (reports.expectation)."""
+    from reports.expectation import fails_night, xfail_of
+
+    if not history_ok:
+        return EXIT_INPUT, ("exit 2: the night could not be added to --history (see above; "
+                            "the output is complete)")
+    if not reports_written:
+        return EXIT_FAIL, (f"exit 1: the reports could not be written (see above; 'hwyeval "
+                           f"report {out}' tries again)")
+    if not any(fails_night(r.status, xfail_of(r.info.scenario_spec)) for r in records):
+        return EXIT_OK, None
+    if no_fail:
+        return EXIT_OK, "exit 0 (--no-fail) although some scenario did not pass"
+    return EXIT_FAIL, None

@@ -11,9 +11,12 @@ dispatched by ``run``'s own :func:`~suite.cli.run.build_jobs` and executors; the
 shrinking (:mod:`suite.search.shrink`), ``found.toml``, ``search.csv``, ``run``'s
 reports and ``search.html``.
 
-Exit codes: 1 a failure was found, 0 none within the budget, 2 bad input, 130 / 143
-interrupted (what finished is kept and told; ``--resume`` goes on from there and ends
-as the uninterrupted search would have).
+Exit codes: 1 a failure was found, 0 none within the budget and every run judged, 3
+none found but some runs ended in error or timeout (their points say nothing: the
+summary names them), 2 bad input (a damaged journal for ``--resume`` included, named
+with its line; another command writing DIR), 130 / 143 interrupted (what finished is
+kept and told; ``--resume`` goes on from there and ends as the uninterrupted search
+would have).
 """
 
 from __future__ import annotations
@@ -32,18 +35,25 @@ from typing import Any
 from suite.cli.common import (
     EXIT_FAIL,
     EXIT_OK,
+    MEMORY_HELP,
+    RAY_ADDRESS_HELP,
     Output,
     Plugins,
     UsageError,
     executor_flags,
     load_plugins,
+    memory_cap_of,
+    memory_mib,
     positive_int,
     positive_seconds,
+    writing_to,
 )
 
 SETTINGS_JSON = "search.json"
 JOURNAL = "search.journal"
 SETTINGS_KEYS = ("catalog", "sampler", "seed", "jobs")
+EXIT_UNJUDGED = 3  # no failure found, but some runs ended in error or timeout
+UNJUDGED = ("error", "timeout")  # run statuses without a verdict
 
 
 def _seed(text: str) -> int:
@@ -77,7 +87,8 @@ def add_search_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     s.add_argument("--out", required=True, help="output directory (new or empty, unless "
                    "--resume or --overwrite)")
     s.add_argument("--budget", type=positive_int, required=True,
-                   help="runs per family (refused points do not count)")
+                   help="runs per family (refused points do not count; the shrinking of "
+                        "what failed runs more, announced: --no-shrink skips it)")
     s.add_argument("--sampler", choices=SAMPLERS, default="tpe")
     s.add_argument("--seed", type=_seed, default=0)
     s.add_argument("--jobs", type=positive_int, default=1,
@@ -92,7 +103,9 @@ def add_search_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     s.add_argument("--timeout", type=positive_seconds, default=None, metavar="SECONDS",
                    help="wall-clock budget of every run (as run's)")
     s.add_argument("--executor", choices=["local", "ray"], default="local")
-    s.add_argument("--ray-address", default=None, help="ray.init address (e.g. auto)")
+    s.add_argument("--ray-address", default=None, help=RAY_ADDRESS_HELP)
+    s.add_argument("--max-memory-mb", type=memory_mib, default=None, metavar="MB",
+                   help=MEMORY_HELP)
     s.add_argument("--no-shrink", action="store_true",
                    help="skip the line searches toward the nominal point")
     s.add_argument("--shrink-points", type=positive_int, default=4,
@@ -139,7 +152,7 @@ class _Runs:
         from suite.exec.outdir import resume_plan
 
         jobs = build_jobs(list(scenarios), self.out, self.catalog_stem, self.args.no_log,
-                          self.plugins, self.args.timeout)
+                          self.plugins, self.args.timeout, memory_cap_of(self.args))
         todo = resume_plan(jobs)
         for record in todo.kept:
             self.on_done(record)
@@ -164,9 +177,12 @@ def _settings(args: argparse.Namespace, sampler: str, seed: int) -> dict[str, An
             "jobs": args.jobs, "budget": args.budget}
 
 
-def _plan(out: Path, args: argparse.Namespace, sampler: str, seed: int) -> Any:
-    """The output plan; ``--resume`` needs DIR's search.json to match."""
+def _plan(out: Path, args: argparse.Namespace, sampler: str, seed: int,
+          families: Sequence[Any] = ()) -> Any:
+    """The output plan; ``--resume`` needs DIR's search.json to match and its journal
+    to be one the search wrote (checked against ``families``: JournalError, exit 2)."""
     from suite.exec.outdir import OutPlan, OutputDirError, check_out_dir, check_report_targets
+    from suite.search.journal_check import check_journal
 
     if not args.resume:
         try:
@@ -191,6 +207,7 @@ def _plan(out: Path, args: argparse.Namespace, sampler: str, seed: int) -> Any:
         check_report_targets(out)
     except OutputDirError as exc:
         raise UsageError(str(exc)) from exc
+    check_journal(out / JOURNAL, families)
     return OutPlan(out, "resume")
 
 
@@ -215,6 +232,22 @@ class SearchOutput:
     stopped: bool = False
     wall_s: float = 0.0
     run_wall_s: float = 0.0
+    workers: int = 1
+
+    @property
+    def n_runs(self) -> int:
+        """Every run: the searches' and the shrinking's."""
+        return (sum(len(fr.runs) for fr in self.results)
+                + sum(len(tried) for _, tried in self.shrinks.values()))
+
+    @property
+    def overhead_per_run_s(self) -> float:
+        """Worker time not spent inside a run, per run [s], >= 0: (wall x workers - the
+        runs' own wall time) / runs. The runs overlap on ``workers`` processes, so their
+        own times summed exceed the wall time with 2 or more; clamped at 0 where the
+        clocks disagree by a hair."""
+        n = max(self.n_runs, 1)
+        return max(0.0, self.wall_s * self.workers - self.run_wall_s) / n
 
     @property
     def failed(self) -> bool:
@@ -228,7 +261,7 @@ def search_into(args: argparse.Namespace, cat: Any, plugins: Plugins, out: Path,
     write found.toml and search.csv."""
     from suite.search.found import write_found, write_search
     from suite.search.loop import SearchSettings, open_storage, search_family
-    from suite.search.shrink import Shrunk, shrink_failures, start_points
+    from suite.search.shrink import Shrunk, start_points
 
     t0 = time.perf_counter()
     (out / SETTINGS_JSON).write_text(json.dumps(_settings(args, sampler, seed), indent=1))
@@ -254,16 +287,7 @@ def search_into(args: argparse.Namespace, cat: Any, plugins: Plugins, out: Path,
             result.stopped = True
             break
     if not result.stopped and shrink:
-        for fr in result.results:
-            if not fr.failures:
-                continue
-            runs.label, runs.done, runs.total = f"{fr.family.name} shrink", 0, 0
-            cases, tried, ok = shrink_failures(fr.family, fr.failures, _Counting(runs),
-                                               points=args.shrink_points)
-            result.shrinks[fr.family.name] = (cases, tried)
-            if not ok:
-                result.stopped = True
-                break
+        _shrink_all(args, result, runs, text)
     elif not result.stopped:
         for fr in result.results:
             if fr.failures:
@@ -277,7 +301,30 @@ def search_into(args: argparse.Namespace, cat: Any, plugins: Plugins, out: Path,
         write_found(found, out)
     result.wall_s = time.perf_counter() - t0
     result.run_wall_s = runs.run_wall_s
+    result.workers = max(1, int(args.jobs))
     return result
+
+
+def _shrink_all(args: argparse.Namespace, result: SearchOutput, runs: _Runs,
+                text: Output) -> None:
+    """Shrink each family's failures (:mod:`suite.search.shrink`), each announced with
+    the runs it may take beside the budget; stops the search when interrupted."""
+    from suite.search.shrink import shrink_bound, shrink_failures, start_points
+
+    for fr in result.results:
+        if not fr.failures:
+            continue
+        text.line(f"shrinking {fr.family.name}: {len(start_points(fr.family, fr.failures))} "
+                  f"failure mode(s), at most "
+                  f"{shrink_bound(fr.family, fr.failures, args.shrink_points)} more runs "
+                  f"beside the budget of {args.budget} (--no-shrink skips them)")
+        runs.label, runs.done, runs.total = f"{fr.family.name} shrink", 0, 0
+        cases, tried, ok = shrink_failures(fr.family, fr.failures, _Counting(runs),
+                                           points=args.shrink_points)
+        result.shrinks[fr.family.name] = (cases, tried)
+        if not ok:
+            result.stopped = True
+            return
 
 
 class _Counting:
@@ -295,18 +342,19 @@ def _summary(text: Output, res: SearchOutput, out: Path) -> None:
     for fr in res.results:
         best = fr.best()
         modes = sorted({t.mode for t in fr.failures})
-        text.line(f"{fr.family.name}: {len(fr.runs)} runs, {fr.refused} refused, "
-                  f"{len(fr.failures)} failed in {len(modes)} mode(s)"
+        shrunk = len(res.shrinks.get(fr.family.name, ([], []))[1])
+        text.line(f"{fr.family.name}: {len(fr.runs)} runs"
+                  + (f" + {shrunk} shrinking runs beside the budget" if shrunk else "")
+                  + f", {fr.refused} refused, {len(fr.failures)} failed in {len(modes)} mode(s)"
                   + (f": {', '.join(modes)}" if modes else "")
                   + (f"; best robustness {best.robustness:.4g} ({best.criterion}, {best.run})"
                      if best else ""))
         n = max(len(fr.trials), 1)
         text.line(f"  search overhead outside the runs: {1e3 * fr.overhead_s / n:.1f} ms per "
                   f"trial ({n} trials)")
-    n_runs = sum(len(fr.runs) for fr in res.results) or 1
-    text.line(f"wall {res.wall_s:.1f} s, of which the runs' own {res.run_wall_s:.1f} s: "
-              f"{1e3 * (res.wall_s - res.run_wall_s) / n_runs:.0f} ms per run beyond the run "
-              "(process start, files, the search)")
+    text.line(f"wall {res.wall_s:.1f} s for {res.n_runs} runs on {res.workers} worker(s), the "
+              f"runs' own {res.run_wall_s:.1f} s: {1e3 * res.overhead_per_run_s:.0f} ms per run "
+              "beyond the run (process start, files, the search)")
 
 
 def _write_reports(out: Path, text: Output) -> None:
@@ -320,7 +368,58 @@ def _write_reports(out: Path, text: Output) -> None:
     text.line(f"search:  {page}\n         {out / 'search.csv'}")
 
 
+def unjudged(res: SearchOutput) -> list[Any]:
+    """The runs of a search (its trials and line searches) that ended in error or
+    timeout: they have no verdict, so their points say nothing."""
+    tried = [t for _, extra in res.shrinks.values() for t in extra]
+    return [t for fr in res.results for t in fr.trials if t.status in UNJUDGED] + \
+        [t for t in tried if t.status in UNJUDGED]
+
+
+def _why(out: Path, run: str) -> str:
+    """The last line of a run's error, from its run.json ('' when unreadable)."""
+    from reports.record.run import read_run_json
+
+    try:
+        _, outcome, _ = read_run_json(out / run)
+    except Exception:  # noqa: BLE001 - the name and status still say which run
+        return ""
+    lines = [line for line in (outcome.error or "").splitlines() if line.strip()]
+    return lines[-1].strip()[:200] if lines else ""
+
+
+def verdict_lines(res: SearchOutput, out: Path) -> tuple[int, list[str]]:
+    """The exit code of a finished search and the lines that end its output: the runs
+    without a verdict (at most 5 named, with why) and what the code means."""
+    bad = unjudged(res)
+    lines = []
+    if bad:
+        lines.append(f"NOT JUDGED  {len(bad)} of {res.n_runs} runs ended in error or timeout "
+                     "(no verdict: the search learnt nothing there):")
+        lines += [f"  {t.status.upper():7s} {t.run}: {_why(out, t.run)}" for t in bad[:5]]
+        if len(bad) > 5:
+            lines.append(f"  ... and {len(bad) - 5} more (search.csv, report.html)")
+    if res.failed:
+        return EXIT_FAIL, [*lines, "exit 1: a failure was found (found.toml)"]
+    if bad:
+        return EXIT_UNJUDGED, [*lines, f"exit 3: no failure found, but {len(bad)} run(s) "
+                               "had no verdict: the search is not conclusive (see above)"]
+    return EXIT_OK, [*lines, "exit 0: no failure found within the budget"]
+
+
 def cmd_search(args: argparse.Namespace) -> int:
+    """The search under DIR's lock (suite.exec.out_lock): another command writing DIR
+    (or a link to it) is refused (exit 2) before anything is read or written."""
+    from suite.search.journal import JournalError
+
+    with writing_to(Path(args.out)):
+        try:
+            return _search(args)
+        except JournalError as exc:  # --resume of a damaged journal: bad input
+            raise UsageError(str(exc)) from exc
+
+
+def _search(args: argparse.Namespace) -> int:
     from reports.manifest import write_manifest
     from suite.catalog import load_catalog
     from suite.cli.run import make_executor, start_manifest
@@ -331,10 +430,11 @@ def cmd_search(args: argparse.Namespace) -> int:
     text = Output()
     plugins = load_plugins(args.plugin)
     cat = load_search_catalog(args.catalog)
+    memory_cap_of(args)  # a bad HWYEVAL_MAX_MEMORY_MB is bad input, before anything runs
     if args.compare:
         return _compare(args, cat, plugins, text)
     out = Path(args.out)
-    plan = _plan(out, args, args.sampler, args.seed)
+    plan = _plan(out, args, args.sampler, args.seed, cat.families)
     executor, workers = make_executor(args, args.jobs)
     nominal = list(load_catalog(args.catalog).scenarios)
     with stop_on_signals() as stop:
@@ -359,7 +459,10 @@ def cmd_search(args: argparse.Namespace) -> int:
     write_manifest(out, manifest.finish())
     _summary(text, res, out)
     text.line(f"found:   {out / 'found.toml'}")
-    return EXIT_FAIL if res.failed else EXIT_OK
+    code, lines = verdict_lines(res, out)
+    for line in lines:
+        text.line(line)
+    return code
 
 
 def _compare(args: argparse.Namespace, cat: Any, plugins: Plugins, text: Output) -> int:
@@ -374,6 +477,7 @@ def _compare(args: argparse.Namespace, cat: Any, plugins: Plugins, text: Output)
     plan = _plan(out, args, "compare", 0)
     executor, _ = make_executor(args, args.jobs)
     outcomes = []
+    not_judged = 0
     with stop_on_signals() as stop:
         prepare_out_dir(plan)
         (out / "manifest.json").write_text("{}")  # marks DIR as an hwyeval output
@@ -387,6 +491,7 @@ def _compare(args: argparse.Namespace, cat: Any, plugins: Plugins, text: Output)
                 if res.stopped:
                     text.line("interrupted")
                     return int(stop.exit_code)
+                not_judged += len(unjudged(res))
                 for fr in res.results:
                     o = outcome_of(fr, sampler, seed, args.budget)
                     outcomes.append(o)
@@ -397,4 +502,8 @@ def _compare(args: argparse.Namespace, cat: Any, plugins: Plugins, text: Output)
     table = compare_table(compare_rows(outcomes), args.budget)
     (out / "compare.md").write_text(table + "\n")
     text.line(table)
+    if not_judged:
+        text.line(f"exit 3: {not_judged} run(s) ended in error or timeout (no verdict): the "
+                  "table counts them as runs without a failure; see each search's summary")
+        return EXIT_UNJUDGED
     return EXIT_OK

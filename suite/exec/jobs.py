@@ -26,6 +26,7 @@ from reports.record import (
 )
 from reports.record.run import write_run_atomic
 from suite.catalog import Scenario
+from suite.exec.memory import MemoryCap
 from suite.exec.signals import StopRequest
 from suite.run.info import scenario_info
 from suite.run.options import RunOptions
@@ -45,13 +46,15 @@ class RunJob:
     executor kills the process ``KILL_GRACE_S`` after it (None: never; the runner's
     own budget is ``options.timeout_s``). ``plugins``: the ``--plugin`` modules (with a
     file's source), imported by the worker before it builds the controller
-    (entry-point plug-ins load themselves)."""
+    (entry-point plug-ins load themselves). ``memory``: the scenario process's
+    address-space cap (:mod:`suite.exec.memory`)."""
 
     scenario: Scenario
     out_dir: Path
     options: RunOptions = field(default_factory=RunOptions)
     timeout_s: float | None = None
     plugins: tuple[registry.PluginModule, ...] = ()
+    memory: MemoryCap = field(default_factory=MemoryCap)
 
     def __post_init__(self) -> None:
         if not isinstance(self.scenario, Scenario):
@@ -65,6 +68,8 @@ class RunJob:
             raise ValueError(f"RunJob.timeout_s: expected a finite number of seconds > 0 or "
                              f"None, got {self.timeout_s!r}")
         object.__setattr__(self, "plugins", tuple(self.plugins))
+        if not isinstance(self.memory, MemoryCap):
+            raise TypeError(f"RunJob.memory: expected a MemoryCap, got {self.memory!r}")
 
     @property
     def name(self) -> str:

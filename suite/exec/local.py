@@ -32,17 +32,20 @@ from __future__ import annotations
 import multiprocessing as mp
 import multiprocessing.connection
 import signal
+import sys
 import time
 import traceback
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
-from reports.record import RecordError, RunRecord
-from reports.record.run import discard_staging, remove_path
+from reports.record import RecordError, RunRecord, write_run_json
+from reports.record.codec import write_text_atomic
+from reports.record.run import TRACEBACK, discard_staging, remove_path
 from suite.exec.forkserver import stop_forkserver, warm_up
 from suite.exec.jobs import OnDone, RunJob, read_result, record_in_memory, run_job, write_failure
+from suite.exec.memory import apply_memory_cap, memory_note, ran_out_of_memory
 from suite.exec.signals import POLL_S, StopRequest
 from suite.exec.worker import become_worker, signal_worker, terminate_workers
 
@@ -51,13 +54,41 @@ __all__ = ["KILL_GRACE_S", "LocalExecutor"]
 KILL_GRACE_S = 10.0  # a process still alive this long after its budget is killed [s]
 
 
-def _worker_main(job: RunJob) -> None:
+def _worker_main(job: RunJob, memory_limit: int | None = None) -> None:
+    """The scenario process: its group and signals, its memory cap (``memory_limit``
+    [bytes], None: none; :mod:`suite.exec.memory`), then the run. A run that ran out of
+    memory under the cap says so in its error's last line."""
     become_worker()
     try:
-        run_job(job)
+        apply_memory_cap(memory_limit)
+        record = run_job(job)
     except Exception:
-        write_failure(job, "error", traceback.format_exc())
+        record = write_failure(job, "error", traceback.format_exc())
+        if memory_limit is not None:
+            note_out_of_memory(record, memory_limit)
         raise
+    if memory_limit is not None:
+        note_out_of_memory(record, memory_limit)
+    if record.run_dir is None:  # not even its record could be written (a full disk)
+        lines = [li for li in (record.outcome.error or "").splitlines() if li.strip()]
+        sys.stderr.write(f"hwyeval: {job.name}: its run directory could not be written: "
+                         f"{lines[-1].strip() if lines else '?'}\n")
+        sys.exit(UNPUBLISHED)
+
+
+def note_out_of_memory(record: RunRecord, limit: int) -> None:
+    """If ``record`` (published) ended in a failed allocation, add :func:`memory_note`
+    as the last line of its error (the line the terminal and the reports show), in its
+    traceback.txt and run.json (each replaced atomically)."""
+    if record.run_dir is None or not ran_out_of_memory(record.outcome.error):
+        return
+    error = f"{(record.outcome.error or '').rstrip()}\n{memory_note(limit)}\n"
+    record.outcome = replace(record.outcome, error=error)
+    try:
+        write_text_atomic(record.run_dir / TRACEBACK, error)
+        write_run_json(record, record.run_dir)
+    except OSError:  # a full disk: the run's own error stays, as written
+        pass
 
 
 @dataclass
@@ -65,7 +96,12 @@ class _Running:
     job: RunJob
     proc: Any
     started: float  # time.monotonic() at start [s]
+    memory_limit: int | None = None  # the process's address-space cap [bytes]
 
+
+# The exit code of a scenario process that ran but could not write its run directory
+# (it said why on stderr, which it shares with the command).
+UNPUBLISHED = 3
 
 # Exit codes of a scenario process that was stopped, not broken: killed by a stop
 # signal, or 255 (multiprocessing's code when the forkserver that reports the child's
@@ -149,23 +185,25 @@ class LocalExecutor:
         try:
             remove_path(job.run_dir)
             discard_staging(job.out_dir, job.name)
-            proc = self._start_process(job)
+            limit = job.memory.limit_bytes()  # this machine's, as the process will have it
+            proc = self._start_process(job, limit)
         except Exception:  # noqa: BLE001 - one job that cannot start is that job's error
             return write_failure(job, "error", "could not start the scenario process:\n"
                                  + traceback.format_exc())
-        return _Running(job, proc, time.monotonic())
+        return _Running(job, proc, time.monotonic(), limit)
 
-    def _start_process(self, job: RunJob) -> Any:
-        """The started process of ``job``, tried once more on a new forkserver when the
-        old one is gone or dying (module doc)."""
-        proc = self.ctx.Process(target=_worker_main, args=(job,), name=job.name)
+    def _start_process(self, job: RunJob, limit: int | None) -> Any:
+        """The started process of ``job`` (address space capped at ``limit`` [bytes]),
+        tried once more on a new forkserver when the old one is gone or dying (module
+        doc)."""
+        proc = self.ctx.Process(target=_worker_main, args=(job, limit), name=job.name)
         try:
             proc.start()
         except (EOFError, ConnectionError):
             if self.start_method != "forkserver":
                 raise
             stop_forkserver()
-            proc = self.ctx.Process(target=_worker_main, args=(job,), name=job.name)
+            proc = self.ctx.Process(target=_worker_main, args=(job, limit), name=job.name)
             proc.start()
         return proc
 
@@ -178,26 +216,35 @@ class LocalExecutor:
             discard_staging(job.out_dir, job.name)
             if killed is not None:
                 return write_failure(job, "timeout", killed)
-            return self._published(job, proc.exitcode)
+            return self._published(job, proc.exitcode, item.memory_limit)
         except Exception:  # noqa: BLE001 - the parent must go on with the other jobs
             return record_in_memory(job, "error", "the executor failed on this run:\n"
                                     + traceback.format_exc())
 
     @staticmethod
-    def _published(job: RunJob, exitcode: int | None) -> RunRecord | None:
+    def _published(job: RunJob, exitcode: int | None,
+                   memory_limit: int | None = None) -> RunRecord | None:
         """The run's published record; None when the process was stopped from outside
         (SIGTERM, SIGINT or SIGHUP, as a CI cancel sends to the whole process group; or
         exit code 255, the forkserver gone with the status unknown) before it published
         one: the run did not end, ``--resume`` runs it again. A record published before
         such an end is kept whatever the exit code; any other end without a valid
-        record is the run's error."""
+        record is the run's error (one killed by a signal under a memory cap
+        ``memory_limit`` [bytes] may have run out of memory in C: the message says so)."""
         try:
             record = read_result(job)
         except (FileNotFoundError, RecordError) as exc:
             if exitcode in STOPPED_FROM_OUTSIDE:
                 return None
+            hint = ""
+            if exitcode == UNPUBLISHED:
+                hint = "; it could not write its run directory (why: on stderr above)"
+            if memory_limit is not None and exitcode is not None and exitcode < 0:
+                hint = (f"; it may have run out of memory ({memory_limit / 2**20:.0f} MiB "
+                        "cap, --max-memory-mb): an allocation that fails in C code can "
+                        "end the process this way")
             return write_failure(job, "error", f"scenario process exited with code "
-                                 f"{exitcode} without a valid record ({exc})")
+                                 f"{exitcode} without a valid record ({exc}){hint}")
         if exitcode not in (0, *STOPPED_FROM_OUTSIDE) and record.outcome.end == "ok":
             return write_failure(job, "error", f"scenario process exited with code {exitcode}")
         return record

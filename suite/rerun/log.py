@@ -14,8 +14,9 @@ Recording
   (which would show every event twice); the recording's name says scenario, seed,
   status and catalog, its start time is when the log was written, and its properties
   (``/__properties``) carry catalog, scenario, seed, controller, status and version;
-* a per-run ``rr.RecordingStream`` (never the global one) saved to ``run.rrd`` with
-  the default blueprint of :mod:`suite.rerun.blueprint` embedded;
+* a per-run ``rr.RecordingStream`` (never the global one) encoded in memory and written
+  to ``run.rrd`` (a full disk raises at once, naming the file) with the default
+  blueprint of :mod:`suite.rerun.blueprint` embedded;
 * timelines ``sim_time`` (duration, from ``t_s``) and ``step`` (sequence).
 
 Entity paths (:data:`ENTITY_PATHS`; users and tests rely on them)
@@ -72,8 +73,12 @@ from suite.rerun.world import (
     log_vehicles,
 )
 
-__all__ = ["ENTITY_PATHS", "application_id_for", "lane_edges", "log_record",
-           "new_recording_id", "write_rrd"]
+__all__ = ["ENTITY_PATHS", "FLUSH_TIMEOUT_S", "application_id_for", "lane_edges",
+           "log_record", "new_recording_id", "write_rrd"]
+
+# Encoding a run's log takes well under a second; this bounds a Rerun that never
+# finishes encoding (it raises then) [s].
+FLUSH_TIMEOUT_S = 60.0
 
 
 def _catalog_name(catalog: str | None) -> str:
@@ -168,18 +173,37 @@ def log_record(record: RunRecord, out: Path, *, catalog_name: str | None = None,
     # recording for the run's log.
     partial = out.with_name(out.name + ".partial")
     rec = rr.RecordingStream(app, recording_id=new_recording_id())
+    # Encoded in memory and written here, not by Rerun's file sink: on a full disk that
+    # sink's writer thread dies and every later log call, flush and disconnect waits for
+    # it forever (the run then hung until its wall-clock budget). Here the write raises
+    # at once, naming the file. The bytes are the file sink's (footer included).
+    stream = rr.binary_stream(recording=rec)
     try:
-        rec.save(partial, default_blueprint=default_blueprint(view_geometry(record)))
+        rec.send_blueprint(default_blueprint(view_geometry(record)), make_active=False,
+                           make_default=True)
         _send_identity(rec, record, catalog)
         _write(RunLog(rec, record))
-        rec.flush()
+        data = stream.read(flush=True, flush_timeout_sec=FLUSH_TIMEOUT_S) or b""
+        rec.disconnect()
+        data += stream.read(flush=False) or b""
+        _write_bytes(partial, data)
     except BaseException:
         rec.disconnect()
         partial.unlink(missing_ok=True)
         raise
-    rec.disconnect()
     os.replace(partial, out)
     return out
+
+
+def _write_bytes(path: Path, data: bytes) -> None:
+    """``path.write_bytes(data)``, its OSError naming ``path`` (a failed write names no
+    file by itself)."""
+    try:
+        path.write_bytes(data)
+    except OSError as exc:
+        if exc.filename is None:
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+        raise
 
 
 def write_rrd(run_dir: Path, *, catalog_name: str | None = None,

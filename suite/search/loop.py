@@ -49,7 +49,7 @@ from reports.metrics.robustness import robustness
 from reports.record import RunRecord, load_run
 from suite.catalog import Scenario
 from suite.exec.signals import StopRequest
-from suite.search.journal import BatchedJournal, open_journal
+from suite.search.journal import ASKS_MARKED, BatchedJournal, asked_key, open_journal
 from suite.search.samplers import SAMPLERS, make_sampler
 from suite.search.space import Family, Param, Refused, build_point, trial_name
 
@@ -249,6 +249,8 @@ class _Study:
                                          direction="minimize", load_if_exists=True,
                                          sampler=make_sampler(kind, seed, family_index, 0))
         self.study_id = storage.get_study_id_from_name(family.name)
+        if not self.study.get_trials(deepcopy=False):  # new: marks its asks (journal.asked_key)
+            self.study.set_user_attr(ASKS_MARKED, 1)
 
     def reseed(self, batch: int) -> None:
         self.study.sampler = make_sampler(self.kind, self.seed, self.index, batch)
@@ -367,6 +369,7 @@ def search_family(family: Family, family_index: int, settings: SearchSettings,
             break
         st.reseed(batch)
         asked = _ask_batch(st, want, batch, out, settings)
+        st.study.set_user_attr(asked_key(batch), len(asked))  # in the same flush as the asks
         flush()
         if asked and not _run(st, asked, batch, run_batch, out):
             out.stopped = True
