@@ -76,27 +76,27 @@ def err(msg: str) -> None:
     print(f"hwyeval: {msg}", file=sys.stderr)
 
 
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
+def whole_number(text: str, minimum: int, what: str = "a whole number") -> int:
+    """An integer >= ``minimum`` parsed from ``text``, else argparse's type error saying
+    ``what`` was expected."""
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {value}")
+        raise argparse.ArgumentTypeError(f"expected {what} >= {minimum}, got {text!r}") \
+            from None
+    if value < minimum:
+        raise argparse.ArgumentTypeError(f"expected {what} >= {minimum}, got {value}")
     return value
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    return whole_number(text, 1)
 
 
 def memory_mib(text: str) -> int:
     """argparse type: a whole number of MiB >= 0 (``--max-memory-mb``; 0: no cap)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of MiB >= 0 (0: no cap), "
-                                         f"got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number of MiB >= 0, got {value}")
-    return value
+    return whole_number(text, 0, "a whole number of MiB (0: no cap)")
 
 
 RAY_ADDRESS_HELP = ("the Ray cluster of --executor ray: host:port, ray://host:port or auto "

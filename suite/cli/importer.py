@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from suite.cli.common import EXIT_INPUT, EXIT_OK, Output, err, writing_to
+from suite.cli.common import EXIT_INPUT, EXIT_OK, Output, err, whole_number, writing_to
 
 
 def _metres(text: str) -> float:
@@ -28,14 +28,7 @@ def _metres(text: str) -> float:
 
 
 def _obstacle_id(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an obstacle id (an integer), got "
-                                         f"{text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an obstacle id >= 0, got {value}")
-    return value
+    return whole_number(text, 0, "an obstacle id (an integer)")
 
 
 def add_import_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

@@ -10,12 +10,18 @@ the new state (None once the ego has left the simulation) and scene.
 from __future__ import annotations
 
 import math
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 import numpy as np
 
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
-from controllers.protocol import Command
+from controllers.protocol import (
+    Command,
+    Observation,
+    ObstaclePolicy,
+    ScenarioContext,
+    StepDiagnostics,
+)
 from suite.run.ego import EgoProjector, EgoState, FloatArray
 from suite.world.protocol import EgoPose, Scene, World, WorldEgo
 
@@ -123,3 +129,26 @@ class SumoDrivenDynamics:
         self._psi = float(state[2])
         return EgoState(state, es.accel_mps2, es.speed_mps * r, math.nan, math.nan, s, y, e,
                         es, self.projector.at(s, y, e)), scene
+
+
+class DrivenEgoStage:
+    """The loop's controller stage when the ego's dynamics drive it themselves (SUMO's
+    driver model, a recorded track): it commands nothing (NaN steer and torque), takes no
+    obstacles, and reports ``parameters`` (the driver's, and what it drives)."""
+
+    diagnostics_type: ClassVar[type[StepDiagnostics]] = StepDiagnostics
+    obstacle_policy: ObstaclePolicy | None = None
+
+    def __init__(self, name: str, parameters: dict[str, object]) -> None:
+        self.name = name
+        self._parameters = dict(parameters)
+
+    def reset(self, context: ScenarioContext) -> None:
+        del context
+
+    def step(self, observation: Observation) -> Command:
+        del observation
+        return Command(steer_rad=math.nan, torque_nm=math.nan)
+
+    def parameters(self) -> dict[str, object]:
+        return dict(self._parameters)

@@ -40,7 +40,7 @@ track's end, so the recorded run and the controller's cover the same time.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
@@ -49,13 +49,10 @@ from controllers.baselines.recorded_driver import RecordedDriverModel
 from controllers.plant.vehicle_model import VehicleParams
 from controllers.protocol import (
     Command,
-    Observation,
-    ObstaclePolicy,
-    ScenarioContext,
-    StepDiagnostics,
 )
 from suite.catalog import Scenario
 from suite.catalog.tracks import EGO_TRACK_START_TOL_S, Track, read_tracks
+from suite.run.dynamics import DrivenEgoStage
 from suite.run.ego import EgoProjector, EgoState, FloatArray
 from suite.world.protocol import EgoPose, Scene, World
 
@@ -208,31 +205,14 @@ class RecordedDynamics:
         return self._ego(self._j, self._scene), self._scene
 
 
-@dataclass
-class RecordedDrivesEgo:
+class RecordedDrivesEgo(DrivenEgoStage):
     """The loop's controller stage when the recording drives: commands nothing (NaN);
     its parameters say which track and box it drives."""
 
-    model: RecordedDriverModel
-    track: Track
-    name: str = "recorded"
-    obstacle_policy: ObstaclePolicy | None = None
-    diagnostics_type: ClassVar[type[StepDiagnostics]] = StepDiagnostics
-    _parameters: dict[str, object] = field(default_factory=dict, init=False)
-
-    def __post_init__(self) -> None:
-        self.name = self.model.name
-        self._parameters = {**self.model.parameters(), "ego_track": self.track.track_id,
-                            "samples": int(self.track.time_s.shape[0]),
-                            "end_s": self.track.end_s, "length_m": self.track.length_m,
-                            "width_m": self.track.width_m}
-
-    def reset(self, context: ScenarioContext) -> None:
-        del context
-
-    def step(self, observation: Observation) -> Command:
-        del observation
-        return Command(steer_rad=math.nan, torque_nm=math.nan)
-
-    def parameters(self) -> dict[str, object]:
-        return dict(self._parameters)
+    def __init__(self, model: RecordedDriverModel, track: Track) -> None:
+        super().__init__(model.name, {
+            **model.parameters(), "ego_track": track.track_id,
+            "samples": int(track.time_s.shape[0]), "end_s": track.end_s,
+            "length_m": track.length_m, "width_m": track.width_m})
+        self.model = model
+        self.track = track

@@ -17,7 +17,6 @@ import time
 import traceback
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import ClassVar
 
 import numpy as np
 
@@ -28,12 +27,8 @@ from controllers.behaviour.protocol import Behaviour, CruiseBehaviour
 from controllers.path.frenet import FrenetPath
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
 from controllers.protocol import (
-    Command,
     Controller,
-    Observation,
-    ObstaclePolicy,
     ScenarioContext,
-    StepDiagnostics,
     SumoDriverModel,
 )
 from reports.record import (
@@ -57,7 +52,7 @@ from suite.road.lanes import LaneContextMap
 from suite.road.network import RoadNetwork
 from suite.road.record import route_lane_records
 from suite.road.route_reference import RouteReference, build_reference
-from suite.run.dynamics import EgoDynamics, PlantDynamics, SumoDrivenDynamics
+from suite.run.dynamics import DrivenEgoStage, EgoDynamics, PlantDynamics, SumoDrivenDynamics
 from suite.run.ego import EgoProjector
 from suite.run.info import scenario_info
 from suite.run.loop import Stages, run_loop
@@ -76,25 +71,12 @@ from suite.world.protocol import WorldSummary
 from suite.world.sumo import SumoWorld
 
 
-class SumoDrivesEgo:
+class SumoDrivesEgo(DrivenEgoStage):
     """The loop's controller stage when SUMO's driver model drives: commands nothing."""
 
-    name = "sumo"
-    diagnostics_type: ClassVar[type[StepDiagnostics]] = StepDiagnostics
-    obstacle_policy: ObstaclePolicy | None = None
-
     def __init__(self, model: SumoDriverModel) -> None:
+        super().__init__("sumo", dict(model.parameters()))
         self.model = model
-
-    def reset(self, context: ScenarioContext) -> None:
-        del context
-
-    def step(self, observation: Observation) -> Command:
-        del observation
-        return Command(steer_rad=math.nan, torque_nm=math.nan)
-
-    def parameters(self) -> dict[str, object]:
-        return dict(self.model.parameters())
 
 
 @dataclass
