@@ -26,6 +26,15 @@ checkout: :func:`reports.manifest.catalog_identity`; filled for older nights by
 code hash and resolved options, JSON), ``failures`` (the failed criteria, typed: filled
 from ``failed_criteria`` for older rows) and the known-failure mark ``xfail`` /
 ``xfail_strict``. docs/history.md describes every column.
+
+**Whose file it is.** A database hwyeval creates carries a marker, the table
+``hwyeval_meta`` (``key``, ``value``) with ``application_id`` =
+:data:`APPLICATION_ID`, written in the transaction that creates its tables. Before any
+write (and before reading) :func:`identify` says whose the file is: marked, empty, or an
+older unmarked hwyeval file (exactly the tables ``schema_version``, ``nights``,
+``runs``), which gets its marker in a transaction of its own before it is migrated.
+Anything else (another program's tables, or hwyeval's tables beside them without the
+marker) is not hwyeval's: :class:`ForeignDatabase`, and nothing is written into it.
 """
 
 from __future__ import annotations
@@ -36,6 +45,16 @@ from pathlib import Path
 from typing import Any
 
 SCHEMA_VERSION = 3
+
+APPLICATION_ID = "hwyeval.history"
+"""``hwyeval_meta.application_id`` of a history database (the marker)."""
+META_TABLE = "hwyeval_meta"
+# The tables of an hwyeval history database before the marker existed (versions 1-3).
+KNOWN_TABLES = frozenset({"schema_version", "nights", "runs"})
+MARKER_DDL = (
+    f"CREATE TABLE {META_TABLE} (key VARCHAR PRIMARY KEY, value VARCHAR NOT NULL)",
+    f"INSERT INTO {META_TABLE} VALUES ('application_id', '{APPLICATION_ID}')",
+)
 
 # The columns of ``runs`` that are not metrics (a metric of that name is refused).
 RUN_KEY_COLUMNS = ("night_id", "scenario", "scenario_hash", "controller", "status",
@@ -126,6 +145,56 @@ class HistoryError(ValueError):
     names the file and what was expected."""
 
 
+class ForeignDatabase(HistoryError):
+    """The file is a database of another program (module docstring: whose file it is);
+    nothing was written into it (exit 2)."""
+
+
+EMPTY, MARKED, UNMARKED = "empty", "marked", "unmarked"
+"""What :func:`identify` finds: no table at all, hwyeval's marker, or an older hwyeval
+file without it."""
+
+
+def _user_tables(con: Any) -> list[str]:
+    """Every table and view of the file, ``schema.name`` outside ``main``; DuckDB's own
+    catalog views are not counted."""
+    rows = con.execute(
+        "SELECT schema_name, table_name FROM duckdb_tables() WHERE database_name = "
+        "current_database() UNION ALL SELECT schema_name, view_name FROM duckdb_views() "
+        "WHERE database_name = current_database() AND NOT internal").fetchall()
+    return sorted(name if schema == "main" else f"{schema}.{name}" for schema, name in rows)
+
+
+def _marker(con: Any) -> str | None:
+    """``hwyeval_meta.application_id`` (None: no such row)."""
+    row = con.execute(f"SELECT value FROM {META_TABLE} WHERE key = 'application_id'"
+                      ).fetchone()
+    return None if row is None else str(row[0])
+
+
+def identify(con: Any, where: str = "") -> str:
+    """Whose file ``con`` is (:data:`EMPTY`, :data:`MARKED`, :data:`UNMARKED`); raises
+    :class:`ForeignDatabase` naming ``where`` and the tables found when it is not
+    hwyeval's. Reads only."""
+    tables = _user_tables(con)
+    if not tables:
+        return EMPTY
+    if META_TABLE in tables:
+        found = _marker(con)
+        if found == APPLICATION_ID:
+            return MARKED
+        raise ForeignDatabase(f"{where}: not an hwyeval history database "
+                              f"({META_TABLE}.application_id is {found!r}, expected "
+                              f"{APPLICATION_ID!r}); nothing was written into it")
+    if set(tables) == KNOWN_TABLES:
+        return UNMARKED
+    shown = ", ".join(tables[:10]) + (f" and {len(tables) - 10} more" if len(tables) > 10
+                                      else "")
+    raise ForeignDatabase(f"{where}: not an hwyeval history database (it has the tables "
+                          f"{shown} and no {META_TABLE} marker); nothing was written into "
+                          "it: give hwyeval a file of its own")
+
+
 def schema_version(con: Any) -> int:
     """The schema version of an open database (0: an empty file)."""
     tables = {row[0] for row in con.execute(
@@ -133,8 +202,8 @@ def schema_version(con: Any) -> int:
     ).fetchall()}
     if "schema_version" not in tables:
         if tables & {"nights", "runs"}:
-            raise HistoryError("the database has tables nights/runs but no schema_version: "
-                               "not an hwyeval history database")
+            raise ForeignDatabase("the database has tables nights/runs but no schema_version: "
+                                  "not an hwyeval history database")
         return 0
     row = con.execute("SELECT max(version) FROM schema_version").fetchone()
     return int(row[0]) if row is not None and row[0] is not None else 0
@@ -143,16 +212,28 @@ def schema_version(con: Any) -> int:
 def ensure_schema(con: Any, where: str = "", incoming_catalog: str = "") -> int:
     """Bring an open read-write database to :data:`SCHEMA_VERSION`, one transaction per
     version; returns the version it had before (0: it was empty). Raises
-    :class:`HistoryError` for a newer file. ``incoming_catalog``: the catalog identity
-    of the night about to be added (:func:`backfill_catalog_ids`)."""
+    :class:`HistoryError` for a newer file and :class:`ForeignDatabase` for another
+    program's (checked before anything is written). ``incoming_catalog``: the catalog
+    identity of the night about to be added (:func:`backfill_catalog_ids`)."""
+    owner = identify(con, where)
     before = schema_version(con)
     if before > SCHEMA_VERSION:
         raise HistoryError(f"{where}: schema_version {before} was written by a newer hwyeval "
                            f"(this one reads up to {SCHEMA_VERSION}); nothing was changed")
     steps: list[tuple[int, tuple[str, ...]]] = []
-    if before == 0:
-        steps.append((1, V1_DDL))
+    if owner == EMPTY:
+        steps.append((1, (*MARKER_DDL, *V1_DDL)))
+    elif owner == UNMARKED:  # an older hwyeval file: marked first, then migrated
+        steps.append((0, MARKER_DDL))
     steps.extend((v, MIGRATIONS[v]) for v in range(max(before, 1) + 1, SCHEMA_VERSION + 1))
+    _apply(con, steps, incoming_catalog)
+    return before
+
+
+def _apply(con: Any, steps: list[tuple[int, tuple[str, ...]]], incoming_catalog: str
+           ) -> None:
+    """Run each step's statements (and :data:`AFTER_MIGRATION`'s for its version) in one
+    transaction per step."""
     for version, statements in steps:
         con.execute("BEGIN TRANSACTION")
         try:
@@ -165,7 +246,6 @@ def ensure_schema(con: Any, where: str = "", incoming_catalog: str = "") -> int:
             con.execute("ROLLBACK")
             raise
         con.execute("COMMIT")
-    return before
 
 
 def metric_columns(con: Any) -> list[str]:

@@ -38,6 +38,7 @@ from reports.history.schema import (
     HistoryError,
     add_metric_columns,
     ensure_schema,
+    identify,
     metric_columns,
     schema_version,
 )
@@ -466,7 +467,9 @@ def _runs_table(night: NightRecord, columns: Sequence[str]) -> Any:
 
 def add_night(db: str | Path, night: NightRecord, wait_s: float = DEFAULT_WAIT_S,
               named: bool = False) -> AddResult:
-    """Add ``night`` to ``db`` (created, or migrated to the current schema, first).
+    """Add ``night`` to ``db`` (created, or migrated to the current schema, first). A
+    file that is not hwyeval's raises :class:`~reports.history.schema.ForeignDatabase`
+    before anything is written into it.
 
     The same night (same id, same content digest) a second time changes nothing and
     says so (``added`` False); the same id with other content raises
@@ -555,6 +558,7 @@ def reading(db: str | Path, wait_s: float = DEFAULT_WAIT_S) -> Iterator[Any]:
     with locked(db, wait_s, shared=True):
         con = connect(db, read_only=True)
         try:
+            identify(con, str(db))  # another program's file: said so, not "version 0"
             version = schema_version(con)
             if version != SCHEMA_VERSION:
                 raise HistoryError(

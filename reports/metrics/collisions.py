@@ -48,7 +48,16 @@ the row before it, the last sample before the boxes touched)
                          the other's front edge intersects the ego box (for a swept
                          contact: is the part of it nearest the ego box). A recording
                          cannot yield to an ego that drives differently from its
-                         recorded driver (docs/replay.md).
+                         recorded driver (docs/replay.md). So is a contact
+                         with a replayed vehicle during or within ``JUMP_AFTER_S``
+                         (0.5 s) after a *jump* in its track: two consecutive neighbour
+                         rows of it, both replayed, at most ``JUMP_MAX_GAP_S`` apart,
+                         whose displacement differs from what its speeds and headings
+                         allow (:func:`jump_excess_mps`) by more than
+                         ``JUMP_EXCESS_MPS`` (10 m/s) times their interval: a recording
+                         that teleports onto the ego's path (a glitch the importer warns
+                         of, docs/recorded.md) is the recording's collision, whatever
+                         the geometry says.
 
 At fault (nuPlan: could have been prevented by the planner)
     ``active_front`` and ``stopped_track`` always; ``active_lateral`` when the ego is not
@@ -112,6 +121,13 @@ BEHIND_ANGLE_RAD = math.radians(150.0)
 EPISODE_GAP_S = 1.0
 SUMO_MATCH_S = 1.0
 EGO_ID = "ego"
+
+JUMP_EXCESS_MPS = 10.0
+"""A recorded vehicle *jumps* between two samples when its displacement differs from the
+one its speeds and headings allow by more than this speed [m/s] times the interval
+(1 m over 0.1 s). The three development recordings stay below 1.8 m/s."""
+JUMP_AFTER_S = 0.5  # [s] a contact this long after a jump is still the jump's
+JUMP_MAX_GAP_S = 0.5  # [s] rows further apart than this are not judged (absent between)
 
 # How a collision episode's first contact was found (CollisionEvent.evidence)
 OVERLAP = "overlap"  # the recorded boxes overlap at the row
@@ -232,6 +248,40 @@ class _NeighbourContacts:
 
 
 # ------------------------------------------------------------------ geometry
+
+
+def jump_excess_mps(t_s: np.ndarray, x_m: np.ndarray, y_m: np.ndarray,
+                    heading_rad: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
+    """Per pair of consecutive samples (n - 1,): |d - dt (v_a u_a + v_b u_b) / 2| / dt
+    [m/s], with d the displacement [m] and u the heading's unit vector: how much faster
+    than its recorded speeds and headings allow the vehicle moved (about 0 for a smooth
+    track; NaN where dt <= 0 or a value is not finite)."""
+    dt = np.diff(t_s)
+    ok = dt > 0.0
+    safe = np.where(ok, dt, 1.0)
+    vx, vy = speed_mps * np.cos(heading_rad), speed_mps * np.sin(heading_rad)
+    ex = np.diff(x_m) - 0.5 * dt * (vx[1:] + vx[:-1])
+    ey = np.diff(y_m) - 0.5 * dt * (vy[1:] + vy[:-1])
+    out = np.hypot(ex, ey) / safe
+    return np.where(ok & np.isfinite(out), out, np.nan)
+
+
+def _after_jump(ctx: RunContext, rows: IntColumn, vid: str, t: float) -> bool:
+    """Whether replayed vehicle ``vid`` jumped (module doc) in its neighbour rows at or
+    within ``JUMP_AFTER_S`` before run time ``t`` [s]."""
+    nb = ctx.record.neighbours
+    idx = np.flatnonzero((np.asarray(nb.id, dtype=object) == vid) & (rows >= 0)
+                         & (nb.agent == AGENT_REPLAYED))
+    if idx.size < 2:
+        return False
+    idx = idx[np.argsort(rows[idx], kind="stable")]
+    ts = ctx.t_s[rows[idx]]
+    excess = jump_excess_mps(ts, nb.x_m[idx], nb.y_m[idx], nb.heading_rad[idx],
+                             nb.speed_mps[idx])
+    dt = np.diff(ts)
+    jumped = (excess > JUMP_EXCESS_MPS) & (dt <= JUMP_MAX_GAP_S)
+    # the pair's interval [t_a, t_b] widened by JUMP_AFTER_S after it contains t
+    return bool(np.any(jumped & (ts[:-1] <= t) & (t <= ts[1:] + JUMP_AFTER_S)))
 
 
 def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -559,7 +609,8 @@ def _event(ctx: RunContext, c: _Contact, nc: _NeighbourContacts, topology: LaneT
         row -= 1
         k = _nb_index(nc.rows, np.asarray(nb.id, dtype=object), row, c.other_id)
     kind = _kind(ctx, row, nb, k, c.evidence)
-    if _replayed_into_ego(ctx, row, nb, k, c.evidence, kind):
+    if _replayed_into_ego(ctx, row, nb, k, c.evidence, kind) or (
+            k >= 0 and _after_jump(ctx, nc.rows, c.other_id, float(ctx.t_s[c.row]))):
         kind = CollisionClass.REPLAYED_INTO_EGO
     within = topology.within_one_lane(ctx.corners_m[row])
     agreeing = [s for s in sumo if _agree(c, s, ctx.t_s)]

@@ -13,6 +13,17 @@ kept and the disagreement noted. Fewer than :data:`MIN_PAIRS` pairs: not checked
 lane width of the centre line of some lane of the net (lanelet centre lines and the
 extension lanes) and heads within 90 deg of that lane; heading against the nearest lane
 is "opposite carriageway", being beyond every lane is "off the ego's road".
+
+**Glitches of the recording.** A kept vehicle whose box overlaps the ego's at run time
+0 (the ego as the run places it: its centre, heading and box) is an error naming the
+obstacle (:func:`refuse_overlap_at_start`): the run would start in a collision that is
+the recording's. A vehicle that *jumps* between two consecutive samples, its
+displacement differing from what its speeds and headings allow by more than
+:data:`reports.metrics.collisions.JUMP_EXCESS_MPS` times the interval
+(:func:`reports.metrics.collisions.jump_excess_mps`), is a warning naming it, the time
+and the jump (:func:`find_jumps`); at run time a contact during or just after such a
+jump is the recording's (``replayed_into_ego``), by the same test on the replayed
+poses.
 """
 
 from __future__ import annotations
@@ -23,11 +34,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reports.geometry import box_corners, boxes_overlap
+from reports.metrics.collisions import JUMP_EXCESS_MPS, jump_excess_mps
+from suite.catalog.tracks import TRACK_ID_PREFIX, Track
+from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import angle_diff_rad, project
 from suite.importers.commonroad.records import FloatArray, ObstacleRecord
 
-__all__ = ["MIN_PAIRS", "MIN_SPEED_MPS", "PLAUSIBLE_MULTIPLES", "LaneShape", "Placement",
-           "StepCheck", "StepParams", "check_step", "place_point"]
+__all__ = ["MAX_JUMP_NOTES", "MIN_PAIRS", "MIN_SPEED_MPS", "PLAUSIBLE_MULTIPLES", "EgoBox",
+           "LaneShape", "Placement", "StepCheck", "StepParams", "TrackJump", "check_step",
+           "find_jumps", "jump_notes", "place_point", "refuse_overlap_at_start"]
+
+MAX_JUMP_NOTES = 20
+"""Jumps listed one by one in the notes; the count covers every one."""
 
 MIN_SPEED_MPS = 1.0
 """Sample pairs slower than this [m/s] say nothing about the step (noise dominates)."""
@@ -138,3 +157,100 @@ def place_point(lanes: Sequence[LaneShape], x_m: float, y_m: float,
     if nearest_any is not None and nearest_any[1] > 0.5 * math.pi:
         return Placement("opposite", None, math.nan, math.nan)
     return Placement("off_road", None, math.nan, math.nan)
+
+
+# ------------------------------------------------------------------ glitches
+
+
+@dataclass(frozen=True)
+class EgoBox:
+    """The ego's box at run time 0: centre ``x_m``/``y_m`` [m, net], ``heading_rad``
+    [rad], ``length_m`` x ``width_m`` [m]."""
+
+    x_m: float
+    y_m: float
+    heading_rad: float
+    length_m: float
+    width_m: float
+
+    def __post_init__(self) -> None:
+        if not all(math.isfinite(v) for v in (self.x_m, self.y_m, self.heading_rad)):
+            raise ValueError(f"EgoBox: expected a finite pose, got ({self.x_m}, {self.y_m}, "
+                             f"{self.heading_rad})")
+        if not (self.length_m > 0.0 and self.width_m > 0.0):
+            raise ValueError(f"EgoBox: length_m/width_m: expected > 0, got "
+                             f"{self.length_m}/{self.width_m}")
+
+
+def _obstacle(track_id: str) -> str:
+    """``obstacle <id>`` for track ``rec_<id>`` (the element an error names)."""
+    return f"obstacle {track_id.removeprefix(TRACK_ID_PREFIX)}"
+
+
+def refuse_overlap_at_start(path: str, tracks: Sequence[Track], ego: EgoBox) -> None:
+    """:class:`ImportFailure` naming the first track whose box at run time 0 overlaps
+    the ego's (tracks not present at 0 are not on the road then)."""
+    ego_box = box_corners(ego.x_m, ego.y_m, ego.heading_rad, ego.length_m, ego.width_m)
+    for track in tracks:
+        pose = track.pose_at(0.0)
+        if pose is None:
+            continue
+        box = box_corners(pose.x_m, pose.y_m, pose.heading_rad, track.length_m,
+                          track.width_m)
+        if bool(boxes_overlap(ego_box, box)):
+            raise ImportFailure(path, _obstacle(track.track_id), (
+                f"recorded vehicle {track.track_id} overlaps the ego's box at t = 0 (its "
+                f"centre {math.hypot(pose.x_m - ego.x_m, pose.y_m - ego.y_m):.2f} m from "
+                "the ego's): the run would start in the recording's collision"))
+
+
+@dataclass(frozen=True)
+class TrackJump:
+    """A jump of a recorded vehicle between the samples at run times ``t_s`` and
+    ``t_s + dt_s`` [s]: ``jump_m`` [m], how far its displacement lies from what its
+    speeds and headings allow (``excess_mps`` [m/s] = jump_m / dt_s)."""
+
+    track_id: str
+    t_s: float
+    dt_s: float
+    jump_m: float
+
+    def __post_init__(self) -> None:
+        if not self.track_id:
+            raise ValueError("TrackJump.track_id must not be empty")
+        if not (self.dt_s > 0.0 and self.jump_m >= 0.0 and math.isfinite(self.t_s)):
+            raise ValueError(f"TrackJump {self.track_id}: expected dt_s > 0, jump_m >= 0 and "
+                             f"a finite t_s, got {self.dt_s}, {self.jump_m}, {self.t_s}")
+
+    @property
+    def excess_mps(self) -> float:
+        return self.jump_m / self.dt_s
+
+
+def find_jumps(tracks: Sequence[Track]) -> tuple[TrackJump, ...]:
+    """Every jump (module docstring) of every track, in track then time order."""
+    out: list[TrackJump] = []
+    for track in tracks:
+        if track.time_s.shape[0] < 2:
+            continue
+        excess = jump_excess_mps(track.time_s, track.x_m, track.y_m, track.heading_rad,
+                                 track.speed_mps)
+        dt = np.diff(track.time_s)
+        for i in np.flatnonzero(excess > JUMP_EXCESS_MPS):
+            out.append(TrackJump(track.track_id, float(track.time_s[i]), float(dt[i]),
+                                 float(excess[i] * dt[i])))
+    return tuple(out)
+
+
+def jump_notes(jumps: Sequence[TrackJump]) -> list[str]:
+    """One warning per jump (the first :data:`MAX_JUMP_NOTES`) and the count."""
+    if not jumps:
+        return []
+    ids = sorted({j.track_id for j in jumps})
+    lines = [f"WARNING {len(jumps)} jumps in the recording ({len(ids)} vehicles: "
+             f"{', '.join(ids[:MAX_JUMP_NOTES])}): a contact during or within 0.5 s after "
+             "one is the recording's (replayed_into_ego)"]
+    lines.extend(f"WARNING recorded vehicle {j.track_id} jumps {j.jump_m:.2f} m beyond what "
+                 f"its speed allows between t = {j.t_s:.2f} s and {j.t_s + j.dt_s:.2f} s"
+                 for j in jumps[:MAX_JUMP_NOTES])
+    return lines

@@ -12,9 +12,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from controllers.plant.vehicle_model import VehicleParams
-from suite.catalog.tracks import TrackSet, write_tracks
+from suite.catalog.tracks import Track, TrackSet, write_tracks
 from suite.importers.commonroad import catalog_out, recorded_ego
-from suite.importers.commonroad.checks import LaneShape, StepCheck, StepParams, check_step
+from suite.importers.commonroad.checks import (
+    EgoBox,
+    LaneShape,
+    StepCheck,
+    StepParams,
+    check_step,
+    find_jumps,
+    jump_notes,
+    refuse_overlap_at_start,
+)
 from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import project
 from suite.importers.commonroad.lanelets import RoadRows, build_road
@@ -69,6 +78,7 @@ class FileResult:
     notes: tuple[str, ...]
     wall_s: float
     ego_track: str | None = None  # the recorded ego's track id (recorded_ego), if any
+    jumps: int = 0  # recorded vehicles' jumps between samples (checks.find_jumps)
 
 
 @dataclass(frozen=True)
@@ -123,6 +133,14 @@ def _duration_s(rec: RecordedFile, ts: TrackSet, dt_s: float) -> float:
     return round(end, 6)
 
 
+def _ego_box(rec: RecordedFile, params: ImportParams, ego_track: Track | None) -> EgoBox:
+    """The ego's box at run time 0: hwyeval's car at the planning problem's centre, or
+    the recorded ego's own box."""
+    length, width = ((params.vehicle.length_m, params.vehicle.width_m) if ego_track is None
+                     else (ego_track.length_m, ego_track.width_m))
+    return EgoBox(rec.ego.x_m, rec.ego.y_m, rec.ego.heading_rad, length, width)
+
+
 def import_file(source: Path, out_dir: Path, params: ImportParams) -> FileResult:
     """Import one file into ``out_dir`` (module docstring)."""
     t0 = time.perf_counter()
@@ -144,6 +162,9 @@ def _import(source: Path, out_dir: Path, params: ImportParams, rec: RecordedFile
     selection, ego_track = recorded_ego.split(
         select_tracks(rec.obstacles, _lane_shapes(plan), rec.ego.time_step, dt_s), rec,
         recorded, dt_s)
+    # a recording's own glitches: refused (on the ego at t = 0) or warned of (jumps)
+    refuse_overlap_at_start(rec.path, selection.tracks, _ego_box(rec, params, ego_track))
+    jumps = find_jumps(selection.tracks)
     net_path = out_dir / f"{stem}.net.xml"
     net = build_net(plan, params.net, net_path, rec.path)
     try:
@@ -159,8 +180,8 @@ def _import(source: Path, out_dir: Path, params: ImportParams, rec: RecordedFile
               "dropped (the last one before it kept where t = 0 falls between samples)"]
              if selection.early_samples_dropped else [])
     notes = [step.note, catalog_out.ego_offset_note(centre), *_uncertain_note(rec),
-             *_dropped_notes(selection.dropped), *early, *road.notes, speeds.note,
-             *rec.notes, *stalled_notes,
+             *_dropped_notes(selection.dropped), *early, *jump_notes(jumps), *road.notes,
+             speeds.note, *rec.notes, *stalled_notes,
              *(f"netconvert: {w}" for w in net.warnings)]
     notes.insert(1, f"{len(selection.tracks)} recorded vehicles kept")
     notes[2:2] = recorded_ego.notes(recorded, ego_track)
@@ -186,7 +207,7 @@ def _import(source: Path, out_dir: Path, params: ImportParams, rec: RecordedFile
                       len(stalled), int(ego["lane"]), float(ego["pos_m"]),
                       round(centre.lateral_m, 3), duration,
                       tuple(notes), time.perf_counter() - t0,
-                      None if ego_track is None else ego_track.track_id)
+                      None if ego_track is None else ego_track.track_id, len(jumps))
 
 
 def import_files(sources: Sequence[Path], out_dir: Path,
