@@ -3,7 +3,8 @@
 
     python3 bootstrap.py demo   # venv + install, then run catalogs/demo.toml end to end
     python3 bootstrap.py test   # venv + install (test extras, Chromium), then lint-imports,
-                                # ruff, mypy --strict and pytest
+                                # ruff, mypy --strict and pytest on both cores: the fast
+                                # lane, then the slow tests
 
 The virtual environment lives in .venv; installation is skipped when
 pyproject.toml has not changed since the last one (a hash stamp in .venv).
@@ -88,6 +89,24 @@ def ensure_chromium() -> None:
     sh(["apt-get", "install", "-y", "-q", "chromium", "chromium-driver"], env=env)
 
 
+def run_tests(args: list[str]) -> int:
+    """pytest on both cores (pytest-xdist, a test file's tests on one worker so its module
+    fixtures run once): with no arguments the fast lane first (``-m "not slow"``), then
+    the slow tests; with arguments, one run of those. A run that collects no test
+    (pytest's exit 5) is a failure."""
+    parallel = ["-n", "2", "--dist", "loadfile"]
+    lanes = [[*parallel, *args]] if args else [[*parallel, "-m", "not slow"],
+                                                [*parallel, "-m", "slow"]]
+    worst = 0
+    for lane in lanes:
+        code = subprocess.run([str(PY), "-m", "pytest", *lane], cwd=ROOT).returncode
+        if code == 5:
+            print("pytest collected no tests: that is a failure here", file=sys.stderr)
+            code = 1
+        worst = worst or code
+    return worst
+
+
 def main(argv: list[str]) -> int:
     action = argv[1] if len(argv) > 1 else "demo"
     if action == "demo":
@@ -114,10 +133,7 @@ def main(argv: list[str]) -> int:
                   [str(VENV / "bin" / "mypy"), "suite", "reports", "controllers", "sumo_nets"]]
         failed = [c[0].rsplit("/", 1)[-1] for c in checks
                   if subprocess.run(c, cwd=ROOT).returncode != 0]
-        code = subprocess.run([str(PY), "-m", "pytest", *argv[2:]], cwd=ROOT).returncode
-        if code == 5:
-            print("pytest collected no tests: that is a failure here", file=sys.stderr)
-            return 1
+        code = run_tests(argv[2:])
         if failed:
             print(f"failed checks: {', '.join(failed)}", file=sys.stderr)
             return code or 1
