@@ -92,11 +92,13 @@ def ensure_chromium() -> None:
 def run_tests(args: list[str]) -> int:
     """pytest on both cores (pytest-xdist, a test file's tests on one worker so its module
     fixtures run once): with no arguments the fast lane first (``-m "not slow"``), then
-    the slow tests; with arguments, one run of those. A run that collects no test
+    the slow tests, then the ``serial`` ones alone (they race processes and signals
+    against the clock); with arguments, one run of those. A run that collects no test
     (pytest's exit 5) is a failure."""
     parallel = ["-n", "2", "--dist", "loadfile"]
-    lanes = [[*parallel, *args]] if args else [[*parallel, "-m", "not slow"],
-                                                [*parallel, "-m", "slow"]]
+    lanes = [[*parallel, *args]] if args else [[*parallel, "-m", "not slow and not serial"],
+                                                [*parallel, "-m", "slow and not serial"],
+                                                ["-m", "serial"]]
     worst = 0
     for lane in lanes:
         code = subprocess.run([str(PY), "-m", "pytest", *lane], cwd=ROOT).returncode

@@ -22,6 +22,8 @@ MARKERS = {
     "sumo": "needs a real libsumo simulation (integration test)",
     "slow": "takes more than ~1.5 s (deselect with -m 'not slow': the fast lane)",
     "browser": "needs headless Chromium",
+    "serial": "races processes and signals against the clock: the test command runs these "
+              "alone, after the two parallel lanes",
 }
 
 # Test node ids relative to tests/, without parameters (all parametrisations), measured slow.
