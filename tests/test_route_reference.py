@@ -24,7 +24,7 @@ from suite.road.reference import (
     resample,
     smooth_in_tube,
 )
-from suite.road.route_reference import build_reference
+from suite.road.route_reference import RouteReference, build_reference
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "nets_real"
 REAL_CATALOG = REAL / "catalog.toml"
@@ -170,16 +170,21 @@ def _nets() -> list[tuple[str, Path, tuple[str, ...]]]:
     return out
 
 
+def through_lane_references(net: RoadNetwork, route: tuple[str, ...]
+                            ) -> list[tuple[int, RouteReference]]:
+    """(lane index, its reference from the route's start) for every through lane of the
+    route's first edge that cars may use."""
+    g = RouteLaneGraph(net, route)
+    return [(i, build_reference(net, route, 1.0, i)) for i in sorted(g.lanes(0))
+            if g.is_through(0, i) and g.lanes(0)[i].allows_passenger]
+
+
 @pytest.mark.parametrize(("name", "net_path", "route"), _nets(), ids=[n for n, _, _ in _nets()])
 def test_every_through_lane_reference_hugs_its_lane_smoothly(name: str, net_path: Path,
                                                              route: tuple[str, ...]) -> None:
     net = RoadNetwork.load(net_path)
-    g = RouteLaneGraph(net, route)
     tube = TubeParams()
-    for i in sorted(g.lanes(0)):
-        if not (g.is_through(0, i) and g.lanes(0)[i].allows_passenger):
-            continue
-        ref = build_reference(net, route, 1.0, i)
+    for i, ref in through_lane_references(net, route):
         # Within 0.10 m of the lane polyline outside junctions and jog zones ...
         assert ref.max_offset_m <= tube.lane_tube_m + 1e-6, (name, i)
         # ... no lateral jump (points stay ~1 m apart) ...
@@ -265,12 +270,8 @@ def test_real_references_bend_no_more_than_the_road(name: str) -> None:
 
     net_path, route = real_routes()[name]
     net = RoadNetwork.load(net_path)
-    g = RouteLaneGraph(net, route)
     tube = TubeParams()
-    for i in sorted(g.lanes(0)):
-        if not (g.is_through(0, i) and g.lanes(0)[i].allows_passenger):
-            continue
-        ref = build_reference(net, route, 1.0, i)
+    for i, ref in through_lane_references(net, route):
         kappa = np.abs(curvature(ref.points_xy_m))[3:-3]
         assert 1.0 / float(np.max(kappa)) >= 250.0, (name, i)
         poly = resample(ref.polyline_xy_m, tube.spacing_m)
