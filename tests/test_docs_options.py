@@ -39,7 +39,7 @@ def test_known_rows() -> None:
     assert _row(block, "outer.tol")[5] == "`ipopt_tol`"
     sections = [li for li in block.splitlines() if li.startswith("**`")]
     assert [s.split("`")[1] for s in sections] == ["outer", "inner", "lateral", "launch",
-                                                   "policy", "fallback", "jerk"]
+                                                   "policy", "fallback", "jerk", "threat"]
 
 
 def test_render_replaces_only_between_markers() -> None:

@@ -438,7 +438,8 @@ def test_step_sets_every_diagnostic_field(monkeypatch: pytest.MonkeyPatch) -> No
     assert given and all(g == names for g in given), names - set.intersection(*given)
     # Defaults are NaN, 0 or False: finite and non-zero at some step is set for real.
     rare = {"fallback", "guard_fired", "mrm", "emergency", "emergency_decel_mps2",
-            "emergency_ds_m", "emergency_dy_m"}  # rare events: not expected here
+            "emergency_ds_m", "emergency_dy_m", "brake_floor_mps2",
+            "brake_source"}  # rare events: not expected here
     for name in names - rare:
         values = run.diagnostic(name)
         assert np.all(np.isfinite(values)), name
@@ -456,6 +457,6 @@ def test_parameters_round_trip_through_the_factory() -> None:
     assert params["outer"]["c_y"] == 2.0 and isinstance(params["outer"]["c_y"], float)
     assert params["inner"]["preview"] is False and params["launch"]["blend_s"] == 1.0
     assert set(params) == {"name", "outer", "inner", "lateral", "launch", "policy", "fallback",
-                           "jerk"}
+                           "jerk", "threat"}
     again = make_two_loop(json.loads(json.dumps(params)))
     assert again.params == ctl.params and again.parameters() == params

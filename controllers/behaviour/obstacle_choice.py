@@ -107,7 +107,8 @@ def plan_ellipses(sc: LaneScene, order: IntpArray, plan: LanePlan, side: int,
             float(semi_b[k]), 0.5 * float(fn.length_m[i] + ego_length_m))
     return Obstacles(s_m=fn.s_m[order].copy(), y_m=y, speed_s_mps=fn.v_s_mps[order].copy(),
                      speed_y_mps=fn.v_y_mps[order].copy(), semi_a_m=semi_a,
-                     semi_b_m=semi_b, vehicle_ids=tuple(sc.traffic.ids[i] for i in order))
+                     semi_b_m=semi_b, vehicle_ids=tuple(sc.traffic.ids[i] for i in order),
+                     half_length_m=0.5 * (fn.length_m[order] + ego_length_m))
 
 
 @numba.njit(cache=True)

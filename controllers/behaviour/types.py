@@ -283,6 +283,11 @@ class Obstacles:
     ``semi_a_m`` (along the path) and ``semi_b_m`` (across), ego allowance and
     margins included. ``vehicle_ids``: the vehicle behind each ellipse (K entries), or
     () when not known (the planner then re-identifies obstacles by position).
+    ``half_length_m``: the box-sum half length a_j = (obstacle length + ego length) / 2
+    [m] of each ellipse's vehicle (K entries), the centre distance at which the two
+    boxes touch end to end; or an empty array when not known (then it is inferred from
+    the semi-axes, which only holds for an ellipse built by ``ellipse_semi_axes`` and
+    never reshaped: not for a followed lead's wall or a shrunk ellipse).
     """
 
     s_m: FloatArray
@@ -292,11 +297,16 @@ class Obstacles:
     semi_a_m: FloatArray
     semi_b_m: FloatArray
     vehicle_ids: tuple[str, ...] = ()
+    half_length_m: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     def __post_init__(self) -> None:
         if self.vehicle_ids and len(self.vehicle_ids) != self.count:
             raise ValueError(f"Obstacles.vehicle_ids must have {self.count} entries (or "
                              f"none), got {len(self.vehicle_ids)}")
+        n_half = int(np.asarray(self.half_length_m).shape[0])
+        if n_half not in (0, self.count):
+            raise ValueError(f"Obstacles.half_length_m must have {self.count} entries (or "
+                             f"none), got {n_half}")
 
     @staticmethod
     def empty() -> Obstacles:

@@ -20,6 +20,9 @@ Per control period (:meth:`TwoLoopController.step`):
    range (during the manoeuvre below at least at that manoeuvre's own jerk bound;
    raised for an emergency, which is an obstacle's only:
    :func:`controllers.two_loop.fallback.planner_emergency`; bypassed during the launch);
+   The threat floor (:mod:`controllers.two_loop.threat`) comes first: from an
+   emergency until the obstacle's need has fallen below comfort, the torque is capped
+   at the braking the need calls for, held while the need rises;
 7. minimal-risk manoeuvre (:mod:`controllers.two_loop.fallback`): when the planner
    fails (or a command is non-finite), a committed, jerk-limited braking plan in the
    lane replaces the planner's for at least its hold time; the planner then restarts at
@@ -57,6 +60,8 @@ from controllers.two_loop.fallback import (
     NO_EMERGENCY,
     Emergency,
     MinimalRiskManeuver,
+    needed_decel_mps2,
+    onset_jerk_mps3,
     planner_emergency,
 )
 from controllers.two_loop.jerk import JerkLimiter
@@ -74,6 +79,8 @@ from controllers.two_loop.params import (
     TwoLoopParamsBase,
     two_loop_params,
 )
+from controllers.two_loop.steer_rate import SteerRateLimiter
+from controllers.two_loop.threat import BrakeSource, ThreatFloor
 from controllers.two_loop.tracker import PreviewTracker, TrackerOutput
 
 __all__ = ["TwoLoopController", "TwoLoopDiagnostics", "cgmres_planner", "ipopt_planner",
@@ -139,6 +146,9 @@ class TwoLoopController:
         self.tracker = PreviewTracker(p.inner)
         self.mrm = MinimalRiskManeuver(p.fallback, p.outer.target_accel_mps2, p.policy)
         self.jerk = JerkLimiter(p.jerk)
+        self.threat = ThreatFloor(p.threat)
+        self.steer_rate = SteerRateLimiter(p.fallback.lat_jerk_mps3, p.fallback.blend_s,
+                                           p.fallback.rate_speed_floor_mps)
         self.path: FrenetPath | None = None
         self.planner: OuterPlanner | None = None
         self.plan: OuterPlan | None = None
@@ -183,6 +193,8 @@ class TwoLoopController:
         self.jerk.reset(vp.wheel_radius_m * resistance_n(v0, vp.plant_array()),
                         (-vp.max_brake_torque_nm, vp.max_drive_torque_nm))
         self._emergency = NO_EMERGENCY
+        self.threat.reset()
+        self.steer_rate.reset(context.vehicle)
         self.launch.reset(self.path, context.vehicle)
         self.tracker.reset(self.path, context.vehicle, p.outer.n_stages, st)
         meta, coef, knots = self.path.tables()
@@ -269,14 +281,22 @@ class TwoLoopController:
                 torque = lw * torque_l + (1.0 - lw) * torque
         self.plan = plan
         fallback = bool(plan.fallback) or self.mrm.active
-        if not (math.isfinite(steer) and math.isfinite(torque)):
+        safe_stop = not (math.isfinite(steer) and math.isfinite(torque))
+        if safe_stop:
             fallback = True
             steer, torque = self._brake_along_lane(st, x0)
             out = TrackerOutput(steer, torque, out.preview_err_t_m, out.preview_err_n_m, 0.0, 0.0)
             if not self.mrm.active:
                 self.mrm.engage(t_s, speed, -self.params.outer.fallback_decel_mps2)
+        if self.mrm.active and not safe_stop:
+            torque = self._mrm_limits(torque, speed)
+        steer, _ = self.steer_rate.limit(steer, t_s, dt, speed, float(st[5]), self.mrm.active)
         self._emergency = self._emergency_now(x0, speed, plan, observation.obstacles, lw)
-        torque = self._limit_torque(torque, dt, lw)
+        source = self._source(fallback, lw, safe_stop)
+        need, floor = self._threat(x0, speed, observation.obstacles, lw)
+        if floor > 0.0 and torque > -self._vp[0] * self._vp[6] * floor:
+            torque, source = -self._vp[0] * self._vp[6] * floor, BrakeSource.THREAT_FLOOR
+        torque = self._limit_torque(torque, dt, lw, floor)
         self.launch.observe_torque(torque)
         t_end = time.perf_counter()
         self._t_prev = observation.t_s
@@ -297,7 +317,8 @@ class TwoLoopController:
             mrm_hold_s=self.mrm.hold_s, ocp_target_speed_mps=float(plan.target_speed_mps),
             emergency=self._emergency.active,
             emergency_decel_mps2=self._emergency.decel_mps2,
-            emergency_ds_m=self._emergency.ds_m, emergency_dy_m=self._emergency.dy_m)
+            emergency_ds_m=self._emergency.ds_m, emergency_dy_m=self._emergency.dy_m,
+            threat_need_mps2=need, brake_floor_mps2=floor, brake_source=int(source))
         return Command(steer_rad=float(steer), torque_nm=float(torque), diagnostics=diag,
                        plan_xy_m=plan_xy, preview_xy_m=self.tracker.preview_xy_m.copy())
 
@@ -335,17 +356,53 @@ class TwoLoopController:
         return planner_emergency(self.params.fallback, x0, speed_mps, plan, obstacles,
                                  self.params.policy)
 
-    def _limit_torque(self, torque_nm: float, dt: float, launch_weight: float) -> float:
+    def _mrm_limits(self, torque_nm: float, speed_mps: float) -> float:
+        """The minimal-risk manoeuvre's own limits at the wheels (module docstring of
+        :mod:`controllers.two_loop.fallback`): no braking beyond the ramp's current
+        deceleration (its ``decel_mps2``, raised only by an emergency's brace), and none
+        at all below the ramp's set-point (0.2 m/s of tolerance) unless an obstacle's
+        emergency braces it."""
+        m_r = float(self._vp[0] * self._vp[6])
+        lowest = -m_r * self.mrm.ramp.decel_mps2
+        if speed_mps < self.mrm.set_point_mps - 0.2 and not self.mrm.emergency.active:
+            lowest = 0.0
+        return max(torque_nm, lowest)
+
+    def _source(self, fallback: bool, launch_weight: float, safe_stop: bool) -> BrakeSource:
+        """Which stage set this period's command before the threat floor."""
+        if safe_stop:
+            return BrakeSource.SAFE_STOP
+        if self.launch.active or launch_weight > 0.0:
+            return BrakeSource.LAUNCH
+        return BrakeSource.FALLBACK if fallback else BrakeSource.PLAN
+
+    def _threat(self, x0: np.ndarray, speed_mps: float, obstacles: Obstacles,
+                launch_weight: float) -> tuple[float, float]:
+        """(need b, floor F) [m/s²] of the threat floor (:mod:`controllers.two_loop.
+        threat`); none while the launch law drives or blends out (it brakes for its own
+        obstacles below walking speed)."""
+        if self.launch.active or launch_weight > 0.0:
+            self.threat.reset()
+            return 0.0, 0.0
+        need = needed_decel_mps2(x0, speed_mps, obstacles, self.params.policy,
+                                 self.params.fallback.standstill_m)
+        return need, self.threat.update(need, self._emergency.active)
+
+    def _limit_torque(self, torque_nm: float, dt: float, launch_weight: float,
+                      floor_mps2: float) -> float:
         """The jerk limiter's stage (module docstring, step 6): bypassed while the launch
         law drives, bounded at the manoeuvre's own jerk while it drives, else at the
-        limiter's bounds, raised only for this step's emergency (an obstacle's)."""
+        limiter's bounds, raised only for this step's emergency (an obstacle's) and while
+        the threat floor ``floor_mps2`` acts (to :func:`onset_jerk_mps3` of it)."""
         m_r = self._vp[0] * self._vp[6]
         if self.launch.active or launch_weight > 0.0:
             return self.jerk.follow(torque_nm)
+        floor_jerk = onset_jerk_mps3(self.params.fallback, floor_mps2) if floor_mps2 > 0.0 \
+            else 0.0
         if self.mrm.active:
-            return self.jerk.limit(torque_nm, dt, m_r, self.mrm.ramp.jerk_mps3)
+            return self.jerk.limit(torque_nm, dt, m_r, max(self.mrm.ramp.jerk_mps3, floor_jerk))
         at_least = self._emergency.jerk_mps3 if self._emergency.active else 0.0
-        return self.jerk.limit(torque_nm, dt, m_r, at_least)
+        return self.jerk.limit(torque_nm, dt, m_r, max(at_least, floor_jerk))
 
     def _mrm_plan(self, x0: np.ndarray, y_ref: float, target: float, dt: float,
                   obstacles: Obstacles) -> OuterPlan:

@@ -34,7 +34,13 @@ class TwoLoopDiagnostics(StepDiagnostics):
         for it, or the manoeuvre braced beyond comfort for it); emergency_decel_mps2: the
         braking that obstacle needs [m/s²]; emergency_ds_m, emergency_dy_m: its ellipse
         centre from the ego's CG along and across the path [m] (all NaN without an
-        emergency).
+        emergency);
+    threat_need_mps2: the braking the nearest obstacle ahead needs, b = closing² / (2 d)
+        (:func:`controllers.two_loop.fallback.most_urgent_obstacle`) [m/s²];
+    brake_floor_mps2: the threat floor's deceleration, 0 when it is not active [m/s²];
+    brake_source: which stage set the command
+        (:class:`controllers.two_loop.threat.BrakeSource`: 0 plan, 1 threat floor,
+        2 minimal-risk manoeuvre, 3 launch, 4 safe stop).
     """
 
     steer_outer_rad: float = math.nan
@@ -58,3 +64,6 @@ class TwoLoopDiagnostics(StepDiagnostics):
     emergency_decel_mps2: float = math.nan
     emergency_ds_m: float = math.nan
     emergency_dy_m: float = math.nan
+    threat_need_mps2: float = math.nan
+    brake_floor_mps2: float = math.nan
+    brake_source: int = 0

@@ -17,7 +17,12 @@ and follows this manoeuvre instead, committed for at least ``hold_s``:
   ``comfort_decel_mps2`` and ``emergency_jerk_mps3`` beyond (a collision is worse than
   a hard stop, but a moderate need does not justify an emergency-rate brake onset);
 * path: along the reference at the shaped lateral reference (the lane the behaviour
-  holds), so the preview tracker keeps the car in its lane.
+  holds), so the preview tracker keeps the car in its lane;
+* its own limits hold at the wheels (:meth:`TwoLoopController._mrm_limits`): the
+  tracker's corrections never brake harder than the ramp's current deceleration
+  (``decel_mps2``, or the emergency's), never brake once the car is below the ramp's
+  set-point, and the steering moves from the last command at a bounded rate
+  (:mod:`controllers.two_loop.steer_rate`), never stepped.
 
 Re-engagement: after ``hold_s`` the planner restarts at the measured state (its growing
 horizon makes the first solution exact) and resumes. Hysteresis: a failure within
@@ -78,12 +83,18 @@ class FallbackParams:
     comfort_decel_mps2: float = param(3.5, "m/s²", "needed braking up to which the onset "
                                       "keeps jerk_mps3")
     standstill_m: float = param(1.0, "m", "bumper gap kept when the CG is inside an ellipse")
+    lat_jerk_mps3: float = param(5.0, "m/s³", "lateral jerk bounding the steering rate while "
+                                 "the manoeuvre drives and blends out")
+    blend_s: float = param(1.0, "s", "how long the steering rate stays bounded after the "
+                           "hand-back to the planner")
+    rate_speed_floor_mps: float = param(5.0, "m/s", "speed below which the steering-rate "
+                                        "bound no longer grows")
 
     def __post_init__(self) -> None:
         check_leaves(self)
         for name in ("decel_mps2", "jerk_mps3", "hold_s", "max_hold_s", "rearm_s",
                      "emergency_decel_mps2", "emergency_jerk_mps3", "comfort_decel_mps2",
-                     "standstill_m"):
+                     "standstill_m", "lat_jerk_mps3", "blend_s", "rate_speed_floor_mps"):
             check_range(self, name, gt=0.0)
         check_range(self, "max_hold_s", ge=self.hold_s)
         check_range(self, "emergency_decel_mps2", ge=self.decel_mps2)
@@ -106,6 +117,7 @@ class MinimalRiskManeuver:
         self._released = -math.inf
         self._hold = params.hold_s
         self._cap = 0.0
+        self.set_point_mps = math.inf
         self.emergency = NO_EMERGENCY
 
     def reset(self) -> None:
@@ -170,6 +182,7 @@ class MinimalRiskManeuver:
         ``obstacles`` (the ellipses of this step) set the emergency braking."""
         self._brace(x0, obstacles)
         set_point = min(target_mps if math.isfinite(target_mps) else 0.0, self._cap)
+        self.set_point_mps = max(set_point, 0.0)
         v0 = self.ramp.update(max(set_point, 0.0), dt_s)
         a0 = self.ramp.ramp_accel_mps2
         tau = np.linspace(0.0, horizon_s, n_stages + 1)
@@ -245,8 +258,12 @@ def most_urgent_obstacle(x0: np.ndarray, speed_mps: float, obstacles: Obstacles 
     along s, v_j the ellipse's speed along s (0 if nothing is ahead or nothing closes).
 
     Without ``policy``, inf once the CG is at or past that point (d_j <= 0) and closing.
-    With the ``policy`` the ellipses were built with (a_j the box-sum half length,
-    :func:`controllers.behaviour.ellipses.box_half_length_m`, g_j = s_j - a_j - s -
+    With the ``policy`` the ellipses were built with (a_j the box-sum half length:
+    ``obstacles.half_length_m``, or where the obstacles do not carry it
+    :func:`controllers.behaviour.ellipses.box_half_length_m` of the semi-axes, which a
+    followed lead's wall or a shrunk ellipse would turn into a fraction of the car's
+    length: a cut-in 4 m ahead read as 7 m away, its need as 1.5 m/s² instead of 6.9;
+    g_j = s_j - a_j - s -
     ``standstill_m`` the bumper gap less the standstill distance):
 
         d_j <- max(d_j, min(g_j, A_j - a_j - standstill_m))
@@ -271,7 +288,9 @@ def most_urgent_obstacle(x0: np.ndarray, speed_mps: float, obstacles: Obstacles 
         return 0.0, -1
     d = ds[ahead] - obstacles.semi_a_m[ahead]
     if policy is not None:
-        half = box_half_length_m(obstacles.semi_a_m[ahead], obstacles.semi_b_m[ahead], policy)
+        half = (obstacles.half_length_m[ahead] if obstacles.half_length_m.shape[0]
+                else box_half_length_m(obstacles.semi_a_m[ahead], obstacles.semi_b_m[ahead],
+                                       policy))
         gap = ds[ahead] - half - standstill_m  # bumper gap less the standstill distance
         floor = obstacles.semi_a_m[ahead] - half - standstill_m  # = gap - d
         d = np.maximum(d, np.minimum(gap, floor))

@@ -23,6 +23,7 @@ from controllers.two_loop.jerk import JerkLimitParams
 from controllers.two_loop.lateral import LateralRefParams
 from controllers.two_loop.launch import LaunchParams
 from controllers.two_loop.outer.params import CgmresParams, IpoptParams, OcpParams
+from controllers.two_loop.threat import ThreatBrakeParams
 from controllers.two_loop.tracker import PreviewParams
 
 
@@ -41,6 +42,8 @@ class TwoLoopParamsBase:
                                        "planner fails")
     jerk: JerkLimitParams = section(JerkLimitParams, "rate limit of the longitudinal "
                                     "command (the last stage)")
+    threat: ThreatBrakeParams = section(ThreatBrakeParams, "braking held at an obstacle's "
+                                        "need until it is gone")
 
     def __post_init__(self) -> None:
         horizon = self.outer.horizon_s

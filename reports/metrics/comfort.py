@@ -104,6 +104,7 @@ class ComfortSeries:
     yaw_acc_radps2: FloatColumn
     long_jerk_mps3: FloatColumn
     jerk_mps3: FloatColumn
+    lat_jerk_mps3: FloatColumn
 
 
 def comfort_series(ctx: RunContext) -> ComfortSeries:
@@ -111,7 +112,7 @@ def comfort_series(ctx: RunContext) -> ComfortSeries:
     n = ctx.n
     if n == 0:
         z = np.zeros(0)
-        return ComfortSeries(z, z, z, z, z, z)
+        return ComfortSeries(z, z, z, z, z, z, z)
     dt = ctx.sample_period_s
     ego = ctx.record.trace.ego
     psi = ego.psi_rad
@@ -139,6 +140,7 @@ def comfort_series(ctx: RunContext) -> ComfortSeries:
         yaw_acc_radps2=sg(r, dt, deriv=1),
         long_jerk_mps3=sg(a_long, dt, deriv=1),
         jerk_mps3=np.hypot(sg(ax, dt, deriv=1), sg(ay, dt, deriv=1)),
+        lat_jerk_mps3=sg(a_lat, dt, deriv=1),
     )
 
 
@@ -168,3 +170,18 @@ def comfort_metrics(s: ComfortSeries) -> list[Measured]:
               "long_jerk_mps3"),
         _peak("max_abs_jerk_mps3", s.jerk_mps3, "max", "m/s^3", "lower", "jerk_mps3"),
     ]
+
+
+def fallback_metrics(s: ComfortSeries, fallback: np.ndarray) -> list[Measured]:
+    """``fallback_max_abs_lat_jerk_mps3``: the largest |d a_lat / dt| [m/s³] (the
+    Savitzky-Golay derivative of the lateral acceleration, as every jerk here) over the
+    steps where a safe fallback replaced the plan (``fallback`` (T,) bool; the
+    ``fallbacks`` metric counts them); NaN when there were none. A fallback that steps
+    its steering shows here (0.38 rad in one period at 28 m/s: lateral acceleration
+    -0.5 -> -5.3 m/s² in 20 ms)."""
+    mask = np.asarray(fallback, dtype=bool)
+    jerk = np.where(mask, np.abs(s.lat_jerk_mps3), np.nan) if mask.shape == \
+        s.lat_jerk_mps3.shape else np.full(s.lat_jerk_mps3.shape, np.nan)
+    value, row = extreme(jerk, "max")
+    return [measured("fallback_max_abs_lat_jerk_mps3", value, "m/s^3", "comfort", "lower",
+                     worst_step=row)]

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from reports.metrics.collisions import CollisionJudgement, collision_metrics, judge_collisions
-from reports.metrics.comfort import comfort_metrics, comfort_series
+from reports.metrics.comfort import comfort_metrics, comfort_series, fallback_metrics
 from reports.metrics.context import build_context
 from reports.metrics.criteria import Criteria, steps_failure
 from reports.metrics.drivable import drivable_metrics, offroad_excess_series
@@ -82,7 +82,8 @@ def measure_all(record: RunRecord) -> tuple[list[Measured], SeriesColumns, Colli
     found = (safety_metrics(ctx, ahead, behind, margin)
              + collision_metrics(ctx, collisions) + drivable_metrics(ctx, excess)
              + comfort_metrics(comfort) + tracking_metrics(ctx) + timing_metrics(ctx)
-             + health_metrics(ctx))
+             + health_metrics(ctx)
+             + fallback_metrics(comfort, ctx.record.trace.controller.fallback))
     return _report_order(found), series, collisions
 
 
