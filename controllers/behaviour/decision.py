@@ -37,7 +37,7 @@ relative to the reference lane, leads and followers per lane):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -146,9 +146,9 @@ class LaneBehaviour:
     # ------------------------------------------------------------------ the step
     def decide(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext,
                set_speed_mps: float) -> Decision:
-        scene = self._scene(ego, traffic, lanes)
         self._checks = []
         self._accel = self._tracker.update(ego.t_s, traffic)
+        scene = self._scene(ego, traffic, lanes)
         plan = self._plan or _Plan(scene.ego_lane, scene.ego_lane, -math.inf)
         plan, code, reason, follow = self._update(scene, plan, set_speed_mps)
         self._plan = plan
@@ -164,6 +164,9 @@ class LaneBehaviour:
 
     def _scene(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext) -> LaneScene:
         fn = project_traffic(self.path, traffic, ego)
+        # lateral speeds only where they are a deliberate motion (cut-in recognition with
+        # hysteresis: a recording's jitter is not a cut-in; tracking.py)
+        fn = replace(fn, v_y_mps=self._tracker.lateral(ego.t_s, traffic.ids, fn.v_y_mps))
         rel = relative_lanes(traffic, fn, lanes, self.lane_width_m)
         scene = LaneScene(ego, self.ego.length_m, self.ego.width_m, traffic, fn, rel, lanes,
                           {}, self.lane_width_m)
@@ -291,7 +294,11 @@ class LaneBehaviour:
         c = plan.lane
         v_here, lead = self._lane_speed(sc, c, set_speed)
         wants: list[_Want] = []
-        blocked = lead is not None and v_here < set_speed - lc.block_margin_mps
+        # A lead blocks when it is slower than the set speed by the margin, or by half
+        # the set speed when that is less: at a crawl (0.9 m/s in a jam) a stopped lead
+        # could never be 1 m/s slower, and was never followed.
+        blocked = lead is not None and v_here < set_speed - min(lc.block_margin_mps,
+                                                                 0.5 * set_speed)
         stopped = lead is not None and abs(lead.speed_mps) < 0.5
         if blocked and lead is not None:
             # The pass's stretch: beyond the passed car, and at least a whole change
