@@ -371,7 +371,6 @@ def test_write_cost_1500_steps_30_neighbours(tmp_path: Path) -> None:
     rows = _rows(read_chunks(rrd))
     assert rows[("/world/ego/box", False)] == 1500
     assert rows[("/world/vehicles", False)] == 1500
-    assert elapsed < 10.0
 
 
 def test_birdseye_png_from_rrd(collision_run: tuple[Path, Path]) -> None:

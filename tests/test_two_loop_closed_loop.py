@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 
 import numpy as np
 import pytest
@@ -63,11 +62,10 @@ def _assert_safe_and_comfortable(run: PlantRun) -> None:
 
 # ----------------------------------------------------------------------------- config
 def test_make_two_loop_validates_options() -> None:
-    t0 = time.perf_counter()
     ctl = make_two_loop({"name": "two_loop", "outer": {"cost": "J3", "n_stages": 20,
                                                        "horizon_s": 2.4, "k_max": 16},
                          "inner": {"preview": True}, "policy": {"margin_lat_m": 0.5}})
-    assert time.perf_counter() - t0 < 0.05  # cheap: nothing compiled or solved
+    assert ctl.planner is None and ctl.path is None  # cheap: nothing built or solved
     assert isinstance(ctl, Controller)
     assert ctl.name == "two_loop" and ctl.diagnostics_type is TwoLoopDiagnostics
     assert ctl.obstacle_policy == ObstaclePolicy(margin_lat_m=0.5, detection_distance_m=100.0)

@@ -4,8 +4,10 @@ scenarios -> a SUMO net, a tracks file and a ``catalog.toml`` scenario per file
 
 One line per file (what was built, lanes/edges, tracks kept/dropped, corrections), the
 warnings on stderr. Exit codes: 0 every file imported; 2 bad input (a file that cannot
-be imported, named with its element; commonroad-io missing). The files that did import
-keep their outputs and are listed in DIR/catalog.toml even when another file failed.
+be imported, named with its element; commonroad-io missing; an --out the import may not
+write: :mod:`suite.importers.commonroad.out_guard`, refused before anything is written).
+The files that did import keep their outputs and are listed in DIR/catalog.toml even
+when another file failed.
 """
 
 from __future__ import annotations
@@ -17,13 +19,17 @@ from suite.cli.common import EXIT_INPUT, EXIT_OK, Output, err, whole_number, wri
 
 
 def _metres(text: str) -> float:
+    """A road length [m] in (0, net_build.MAX_EXTENSION_M] (it sizes a run's memory)."""
+    from suite.importers.commonroad.net_build import MAX_EXTENSION_M
+
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a length in metres > 0, got {text!r}") \
             from None
-    if not value > 0.0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a finite length in metres > 0, got {text}")
+    if not 0.0 < value <= MAX_EXTENSION_M:
+        raise argparse.ArgumentTypeError(f"expected a length in metres > 0 and at most "
+                                         f"{MAX_EXTENSION_M:g}, got {text}")
     return value
 
 
@@ -39,7 +45,12 @@ def add_import_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     c = fmt.add_parser("commonroad", help="CommonRoad XML files -> nets, tracks, catalog.toml")
     c.add_argument("files", nargs="+", metavar="FILE.xml")
     c.add_argument("--out", required=True, help="the folder to write (created; files of "
-                   "earlier imports stay)")
+                   "earlier imports stay; one holding files the import did not write, or "
+                   "an edited catalog.toml, needs --overwrite)")
+    c.add_argument("--overwrite", action="store_true",
+                   help="import into an --out that holds files the import did not write "
+                   "(they stay untouched) and replace its catalog.toml even if it was "
+                   "edited or hand-written (docs/recorded.md)")
     c.add_argument("--extension-m", type=_metres, default=None, metavar="M",
                    help="straight road added where the recorded road ends (default 1000)")
     c.add_argument("--approach-m", type=_metres, default=None, metavar="M",
@@ -81,7 +92,7 @@ def cmd_import_commonroad(args: argparse.Namespace) -> int:
 
 
 def _import_commonroad(args: argparse.Namespace) -> int:
-    from suite.importers.commonroad import ImportParams, import_files
+    from suite.importers.commonroad import ImportParams, OutputRefused, import_files
     from suite.importers.commonroad.net_build import NetParams
 
     net = NetParams()
@@ -95,8 +106,9 @@ def _import_commonroad(args: argparse.Namespace) -> int:
         return EXIT_INPUT
     try:
         outcome = import_files([Path(f) for f in args.files], Path(args.out),
-                               ImportParams(net=net, ego_obstacle=args.ego_obstacle))
-    except ImportError as exc:  # commonroad-io is not installed
+                               ImportParams(net=net, ego_obstacle=args.ego_obstacle),
+                               overwrite=args.overwrite)
+    except (ImportError, OutputRefused) as exc:  # commonroad-io missing; --out refused
         err(str(exc))
         return EXIT_INPUT
     for r in outcome.results:

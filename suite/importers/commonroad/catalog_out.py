@@ -24,7 +24,9 @@ hwyeval's own :class:`~suite.road.network.RoadNetwork`), one scenario per file, 
 * **Files.** Each imported file leaves ``<stem>.scenario.json`` (its scenario table and
   notes); ``catalog.toml`` is rebuilt from every such file in DIR, so a file that fails
   later never removes what an earlier import wrote, and ``catalog.toml`` lists every
-  file imported into DIR so far.
+  file imported into DIR so far. Its first line marks it generated, with the hash of
+  the rest (:mod:`~suite.importers.commonroad.catalog_mark`): an edited copy is not
+  replaced silently (:mod:`~suite.importers.commonroad.out_guard`).
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from typing import Any
 from controllers.plant.vehicle_model import VehicleParams
 from suite.catalog.specs import MAX_EGO_HEADING_RAD, MAX_EGO_LATERAL_OFFSET_M
 from suite.catalog.toml_write import dumps_catalog
+from suite.importers.commonroad.catalog_mark import marked
 from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import project
 from suite.importers.commonroad.net_build import BuiltNet
@@ -251,7 +254,8 @@ def _fragments(out_dir: Path) -> list[dict[str, Any]]:
 
 
 def write_catalog(out_dir: Path, failed: Sequence[str] = ()) -> Path:
-    """``catalog.toml`` from every scenario file in ``out_dir`` (atomically); names
+    """``catalog.toml`` from every scenario file in ``out_dir`` (atomically), under its
+    generated-by line (:func:`~suite.importers.commonroad.catalog_mark.marked`); names
     stay unique (a clash gets ``_2``, ``_3``...)."""
     frags = _fragments(out_dir)
     header = ["Recorded scenarios imported from CommonRoad by `hwyeval import commonroad`",
@@ -274,9 +278,9 @@ def write_catalog(out_dir: Path, failed: Sequence[str] = ()) -> Path:
         header += [f"  {note}" for note in frag.get("notes", [])]
     if failed:
         header += ["", "Not imported (see the command's errors): " + ", ".join(failed)]
-    text = dumps_catalog("\n".join(header),
-                         {"controller": DEFAULT_CONTROLLER, "step_s": STEP_S, "seed": 0},
-                         scenarios)
+    text = marked(dumps_catalog("\n".join(header),
+                                {"controller": DEFAULT_CONTROLLER, "step_s": STEP_S, "seed": 0},
+                                scenarios))
     path = out_dir / CATALOG_NAME
     partial = path.with_name(path.name + ".partial")
     partial.write_text(text, encoding="utf-8")

@@ -26,12 +26,17 @@ CommonRoad x/y; no turnarounds; mm precision).
 * Lanes of ``shoulder`` lanelets allow only ``emergency``/``authority`` (hwyeval's hard
   shoulder, :func:`suite.road.network.is_shoulder_permissions`); others disallow
   pedestrians and bicycles.
+* The file is deterministic: netconvert's header comment (its time stamp and the
+  temporary source paths) is replaced by a fixed one naming the CommonRoad file and
+  netconvert's version (:func:`fixed_header`), so one file imported twice gives the
+  same bytes.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import re
 import subprocess
 import tempfile
 from dataclasses import dataclass, field
@@ -48,12 +53,20 @@ from suite.importers.commonroad.speed import SpeedPlan
 from sumo_nets import SHOULDER_VCLASSES, SPEED_LIMIT_MPS, sumo_home
 from sumo_nets.build import NETCONVERT_OPTIONS, netconvert_path
 
-__all__ = ["BuiltNet", "NetEdge", "NetParams", "build_net", "plan_net"]
+__all__ = ["MAX_EXTENSION_M", "BuiltNet", "NetEdge", "NetParams", "build_net", "fixed_header",
+           "plan_net"]
 
 MAIN_TYPE = "highway.motorway"
 LINK_TYPE = "highway.motorway_link"
 RAMP_LANELET_TYPES = ("accessRamp", "exitRamp")
 NON_VEHICLES = "pedestrian bicycle"
+
+MAX_EXTENSION_M = 100_000.0
+"""The longest straight extension or approach [m] (``--extension-m``,
+``--approach-m``). A run resamples every lane of its route every 5 m
+(:mod:`suite.road.lanes`) and its reference path finer, so the road's length sizes a
+run's memory: 1e12 m would ask for 2e11 points. 100 km is more than a run drives
+(24 min at 70 m/s)."""
 
 
 @dataclass(frozen=True)
@@ -73,6 +86,9 @@ class NetParams:
                 continue
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+            if name != "speed_limit_mps" and value > MAX_EXTENSION_M:
+                raise ValueError(f"{name}: expected at most {MAX_EXTENSION_M:g} m "
+                                 f"(net_build.MAX_EXTENSION_M), got {value!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -332,6 +348,27 @@ def render_sources(net: BuiltNet, params: NetParams) -> dict[str, str]:
     return {"nod": "".join(nod), "typ": "".join(typ), "edg": "".join(edg), "con": "".join(con)}
 
 
+_HEADER_RE = re.compile(r"\A(<\?xml[^>]*\?>\s*)<!--(.*?)-->\s*", re.DOTALL)
+_VERSION_RE = re.compile(r"netconvert\s+v?([0-9][^\s]*)")
+
+
+def fixed_header(text: str, source: str) -> str:
+    """``text`` (a net netconvert wrote) with its header comment, which holds a time
+    stamp and the temporary source paths, replaced by a fixed one naming ``source``
+    (a file name) and netconvert's version; unchanged when it has no such header."""
+    m = _HEADER_RE.match(text)
+    if m is None:
+        return text
+    version = _VERSION_RE.search(m.group(2))
+    # XML comments may not hold "--": the options are written without their dashes
+    opts = " ".join(f"{NETCONVERT_OPTIONS[i][2:]}={NETCONVERT_OPTIONS[i + 1]}"
+                    for i in range(0, len(NETCONVERT_OPTIONS), 2))
+    header = (f"<!-- built by hwyeval import commonroad from {source.replace('--', '- -')}\n"
+              f"     with Eclipse SUMO netconvert {version.group(1) if version else '?'}, "
+              f"options: {opts} -->\n\n")
+    return m.group(1) + header + text[m.end():]
+
+
 def build_net(net: BuiltNet, params: NetParams, out: Path, path: str) -> BuiltNet:
     """Run netconvert on the rendered sources and move the net to ``out`` atomically;
     :class:`ImportFailure` (element ``SUMO net``) when netconvert fails."""
@@ -358,7 +395,8 @@ def build_net(net: BuiltNet, params: NetParams, out: Path, path: str) -> BuiltNe
                                 f"{detail}")
         out.parent.mkdir(parents=True, exist_ok=True)
         partial = out.with_name(out.name + ".partial")
-        partial.write_bytes(tmp_out.read_bytes())
+        text = tmp_out.read_text(encoding="utf-8")
+        partial.write_text(fixed_header(text, Path(path).name), encoding="utf-8")
         partial.replace(out)
     warnings = tuple(m for m in msgs if m.startswith("Warning"))
     return replace(net, path=out, warnings=warnings)

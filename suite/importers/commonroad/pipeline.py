@@ -1,19 +1,25 @@
 """One CommonRoad file -> ``<stem>.net.xml``, ``<stem>.tracks.parquet`` and its catalog
 scenario (``<stem>.scenario.json``, gathered into ``catalog.toml``); several files in
-turn. Each output file is written atomically; a file that fails leaves nothing of its
-own half-written and does not touch what the other files wrote."""
+turn. Before anything is written the inputs and the output folder are checked
+(:mod:`~suite.importers.commonroad.out_guard`: no two inputs of one stem, nothing in the
+folder the import did not write, an unedited generated catalog, unless ``overwrite``).
+A file's outputs are written into a staging folder and moved into the output folder
+only once all of them are (:mod:`~suite.importers.commonroad.staging`): a file that
+fails leaves nothing of its own, keeps what an earlier import of its stem wrote, and
+does not touch what the other files wrote."""
 
 from __future__ import annotations
 
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from controllers.plant.vehicle_model import VehicleParams
+from suite.catalog.loader import MAX_STEPS
 from suite.catalog.tracks import Track, TrackSet, write_tracks
-from suite.importers.commonroad import catalog_out, recorded_ego
+from suite.importers.commonroad import catalog_out, out_guard, recorded_ego, staging
 from suite.importers.commonroad.checks import (
     EgoBox,
     LaneShape,
@@ -133,6 +139,22 @@ def _duration_s(rec: RecordedFile, ts: TrackSet, dt_s: float) -> float:
     return round(end, 6)
 
 
+def _runnable(path: str, ts: TrackSet, duration_s: float) -> float:
+    """``duration_s`` [s], refused (naming the vehicle recorded last) when its run would
+    be longer than the catalog allows (:data:`suite.catalog.loader.MAX_STEPS` control
+    steps of :data:`~suite.importers.commonroad.catalog_out.STEP_S`): the catalog
+    written would not load."""
+    steps = round(duration_s / catalog_out.STEP_S)
+    if steps <= MAX_STEPS:
+        return duration_s
+    last = max(ts.tracks, key=lambda t: t.end_s)
+    raise ImportFailure(path, f"obstacle {last.track_id.removeprefix('rec_')}",
+                        f"recorded until {last.end_s:g} s after the initial time step: a "
+                        f"run lasts at most {MAX_STEPS} control steps of "
+                        f"{catalog_out.STEP_S:g} s ({MAX_STEPS * catalog_out.STEP_S:g} s, "
+                        "suite.catalog.loader.MAX_STEPS)")
+
+
 def _ego_box(rec: RecordedFile, params: ImportParams, ego_track: Track | None) -> EgoBox:
     """The ego's box at run time 0: hwyeval's car at the planning problem's centre, or
     the recorded ego's own box."""
@@ -142,18 +164,25 @@ def _ego_box(rec: RecordedFile, params: ImportParams, ego_track: Track | None) -
 
 
 def import_file(source: Path, out_dir: Path, params: ImportParams) -> FileResult:
-    """Import one file into ``out_dir`` (module docstring)."""
+    """Import one file into ``out_dir`` (module docstring; the folder is not checked
+    here: :func:`import_files` does)."""
     t0 = time.perf_counter()
     rec, recorded = recorded_ego.resolve(read_file(source), params.ego_obstacle)
-    with recorded_ego.blamed(recorded):
-        return _import(source, out_dir, params, rec, recorded, t0)
+    stem = out_guard.output_stem(source)
+    with staging.staged(out_dir) as stage:
+        with recorded_ego.blamed(recorded):
+            result = _import(source, stage, params, rec, recorded, t0)
+        staging.commit(stage, out_dir, out_guard.output_names(stem))
+    return replace(result, net_path=out_dir / result.net_path.name,
+                   tracks_path=out_dir / result.tracks_path.name)
 
 
 def _import(source: Path, out_dir: Path, params: ImportParams, rec: RecordedFile,
             recorded: recorded_ego.RecordedEgo | None, t0: float) -> FileResult:
     """:func:`import_file` of the read file ``rec`` (its ego start and goal already set
-    for its recorded ego, if it has one)."""
-    stem = source.name[:-4] if source.name.lower().endswith(".xml") else source.stem
+    for its recorded ego, if it has one), its outputs written into ``out_dir`` (the
+    staging folder)."""
+    stem = out_guard.output_stem(source)
     road = build_road(rec)
     speeds = lane_speeds(road, rec, params.net.speed_limit_mps)
     plan = plan_net(road, params.net, rec.path, speeds)
@@ -186,8 +215,8 @@ def _import(source: Path, out_dir: Path, params: ImportParams, rec: RecordedFile
     notes.insert(1, f"{len(selection.tracks)} recorded vehicles kept")
     notes[2:2] = recorded_ego.notes(recorded, ego_track)
     ts = TrackSet((*selection.tracks, *recorded_ego.tracks(ego_track)), dt_s, tuple(notes))
-    duration = (_duration_s(rec, ts, dt_s) if ego_track is None
-                else recorded_ego.duration_s(ego_track))
+    duration = _runnable(rec.path, ts, _duration_s(rec, ts, dt_s) if ego_track is None
+                         else recorded_ego.duration_s(ego_track))
     tracks_path = out_dir / f"{stem}.tracks.parquet"
     write_tracks(tracks_path, ts)
     name = catalog_out.scenario_name(stem)
@@ -211,11 +240,19 @@ def _import(source: Path, out_dir: Path, params: ImportParams, rec: RecordedFile
 
 
 def import_files(sources: Sequence[Path], out_dir: Path,
-                 params: ImportParams | None = None) -> ImportOutcome:
-    """Import every file in turn; a failing file is recorded and the next one goes on.
-    ``catalog.toml`` is rebuilt at the end from every scenario of ``out_dir``."""
+                 params: ImportParams | None = None, *,
+                 overwrite: bool = False) -> ImportOutcome:
+    """Check the inputs and ``out_dir`` (:class:`~suite.importers.commonroad.errors.
+    OutputRefused` before anything is written; ``overwrite``: write beside files the
+    import did not write and replace an edited ``catalog.toml``), then import every file
+    in turn; a failing file is recorded and the next one goes on. When a file imported,
+    ``catalog.toml`` is rebuilt at the end from every scenario of ``out_dir`` (when none
+    did, nothing in ``out_dir`` changes)."""
     params = ImportParams() if params is None else params
+    sources = out_guard.check_inputs(sources)
+    out_guard.check_out_dir(out_dir, [out_guard.output_stem(s) for s in sources], overwrite)
     out_dir.mkdir(parents=True, exist_ok=True)
+    out_guard.discard_leftovers(out_dir)
     results: list[FileResult] = []
     failures: list[ImportFailure] = []
     for source in sources:
@@ -223,6 +260,6 @@ def import_files(sources: Sequence[Path], out_dir: Path,
             results.append(import_file(source, out_dir, params))
         except ImportFailure as exc:
             failures.append(exc)
-    catalog = catalog_out.write_catalog(out_dir, [Path(f.path).name for f in failures]) \
-        if results or any(out_dir.glob(f"*{catalog_out.FRAGMENT_SUFFIX}")) else None
+    catalog = (catalog_out.write_catalog(out_dir, [Path(f.path).name for f in failures])
+               if results else None)
     return ImportOutcome(tuple(results), tuple(failures), catalog)

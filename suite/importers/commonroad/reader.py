@@ -21,12 +21,19 @@ is the centre only where those vertices are opposite (exiD's are not). Bounds wh
 interior vertex pairs lie more than ``PAIR_SKEW_TOL_M`` apart along the road, or that have
 different vertex counts, are re-paired (:func:`~suite.importers.commonroad.geometry.
 pair_bounds`; a note names them); others are kept as they are.
+
+Checks: the file's structure first (:mod:`~suite.importers.commonroad.structure`:
+well-formed XML, unique ids, goal lanelets that exist); then every number read: a
+position, orientation or velocity of a state, an obstacle's size, a lanelet vertex or
+the ego's initial state given as a number that is not finite (``nan``, ``inf``) names
+its element (an orientation or velocity the file does not give is no error: a missing
+orientation is 0, a missing speed NaN, derived later from the positions); last the
+bounds of :mod:`~suite.importers.commonroad.limits` (coordinates, times).
 """
 
 from __future__ import annotations
 
 import math
-import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +41,7 @@ import numpy as np
 
 from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import PAIR_SKEW_TOL_M, pair_bounds, pair_skew_m
+from suite.importers.commonroad.limits import check_limits
 from suite.importers.commonroad.records import (
     EgoStart,
     FloatArray,
@@ -42,6 +50,7 @@ from suite.importers.commonroad.records import (
     RecordedFile,
     UncertainCount,
 )
+from suite.importers.commonroad.structure import check_structure
 
 __all__ = ["MAX_PLAUSIBLE_MPS", "read_file"]
 
@@ -60,28 +69,6 @@ def _xml_reader() -> Any:
     except ImportError as exc:
         raise ImportError(f"{INSTALL_HINT} ({exc})") from exc
     return XMLFileReader
-
-
-def _precheck(path: Path) -> None:
-    """Well-formed XML, a ``commonRoad`` root, a ``planningProblem`` and a ``lanelet``:
-    named errors instead of commonroad-io's own (less specific) ones. Run only when
-    commonroad-io failed or found no lanelet or planning problem (a second parse of the
-    file costs ~20 % of an import)."""
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as exc:
-        line, col = exc.position
-        raise ImportFailure(str(path), f"XML line {line} column {col}",
-                            f"not well-formed XML ({exc})") from exc
-    except OSError as exc:
-        raise ImportFailure(str(path), "file", f"cannot be read ({exc})") from exc
-    if root.tag != "commonRoad":
-        raise ImportFailure(str(path), f"<{root.tag}>", "expected a <commonRoad> root element")
-    if root.find("planningProblem") is None:
-        raise ImportFailure(str(path), "planningProblem",
-                            "no planning problem: the ego's initial state is needed")
-    if root.find("lanelet") is None:
-        raise ImportFailure(str(path), "lanelet", "no lanelets: a road is needed")
 
 
 def _float(value: Any) -> tuple[float, bool]:
@@ -107,18 +94,26 @@ def _position(value: Any) -> tuple[float, float, bool]:
 
 def _box(shape: Any) -> tuple[float, float, float]:
     """(length, width, origin_x_shift) [m] of an obstacle shape: a rectangle's own, a
-    circle's diameter, else the extent of its vertices."""
+    circle's diameter, else the extent of its vertices; ValueError unless finite (and
+    the box > 0)."""
     shift = float(getattr(shape, "origin_x_shift", 0.0) or 0.0)
     length = getattr(shape, "length", None)
     width = getattr(shape, "width", None)
-    if length is not None and width is not None:
-        return float(length), float(width), shift
     radius = getattr(shape, "radius", None)
-    if radius is not None:
-        return 2.0 * float(radius), 2.0 * float(radius), shift
-    verts = np.asarray(shape.vertices, dtype=np.float64).reshape(-1, 2)
-    ext = np.ptp(verts, axis=0)
-    return float(max(ext)), float(min(ext)), shift
+    if length is not None and width is not None:
+        length, width = float(length), float(width)
+    elif radius is not None:
+        length = width = 2.0 * float(radius)
+    else:
+        verts = np.asarray(shape.vertices, dtype=np.float64).reshape(-1, 2)
+        ext = np.ptp(verts, axis=0)
+        length, width = float(max(ext)), float(min(ext))
+    if not all(math.isfinite(v) for v in (length, width, shift)):
+        raise ValueError(f"its shape: a size that is not a finite number ({length} x "
+                         f"{width} m, origin shift {shift} m)")
+    if not (length > 0.0 and width > 0.0):
+        raise ValueError(f"a box of {length} x {width} m")
+    return length, width, shift
 
 
 def _states(obstacle: Any) -> list[Any]:
@@ -134,24 +129,42 @@ def _states(obstacle: Any) -> list[Any]:
     return [by_step[k] for k in sorted(by_step)]
 
 
+def _given(value: Any, what: str, step: int) -> tuple[float, bool]:
+    """:func:`_float` of a state's field; NaN when the file gives none, ValueError when
+    it gives one that is not a finite number."""
+    number, uncertain = _float(value)
+    if value is not None and not math.isfinite(number):
+        raise ValueError(f"its {what} at time step {step} is not a finite number ({number})")
+    return number, uncertain
+
+
+def _state_row(st: Any, shift: float) -> tuple[tuple[float, ...], bool]:
+    """(time step, box centre x, y, heading, speed) of one state, and whether it was
+    uncertain; a position, orientation or velocity given as a non-finite number is a
+    ValueError."""
+    step_value = st.time_step
+    step = int(step_value.start if hasattr(step_value, "start") else step_value)
+    x, y, u_pos = _position(st.position)
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise ValueError(f"its position at time step {step} is not a finite number "
+                         f"({x}, {y})")
+    heading, u_head = _given(getattr(st, "orientation", None), "orientation", step)
+    speed, u_speed = _given(getattr(st, "velocity", None), "velocity", step)
+    if not math.isfinite(heading):  # none given
+        heading = 0.0
+    return ((step, x - shift * math.cos(heading), y - shift * math.sin(heading), heading,
+             speed), bool(u_pos or u_head or u_speed))
+
+
 def _obstacle(obstacle: Any, static: bool) -> tuple[ObstacleRecord, int]:
     """The record of one obstacle and how many of its states were uncertain."""
     length, width, shift = _box(obstacle.obstacle_shape)
-    if not (length > 0.0 and width > 0.0):
-        raise ValueError(f"a box of {length} x {width} m")
     rows = []
     uncertain = 0
     for st in _states(obstacle):
-        x, y, u_pos = _position(st.position)
-        heading, u_head = _float(getattr(st, "orientation", None))
-        speed, u_speed = _float(getattr(st, "velocity", None))
-        if not math.isfinite(heading):
-            heading = 0.0
-        uncertain += int(u_pos or u_head or u_speed)
-        step = st.time_step
-        rows.append((int(step.start if hasattr(step, "start") else step),
-                     x - shift * math.cos(heading), y - shift * math.sin(heading),
-                     heading, speed))
+        row, was_uncertain = _state_row(st, shift)
+        rows.append(row)
+        uncertain += int(was_uncertain)
     arr = np.asarray(rows, dtype=np.float64)
     kind = getattr(obstacle.obstacle_type, "value", str(obstacle.obstacle_type))
     return ObstacleRecord(
@@ -264,24 +277,29 @@ def _ego(path: str, problems: Any) -> tuple[EgoStart, list[str]]:
                     points, end), notes
 
 
-def read_file(path: Path) -> RecordedFile:
-    """Read ``path`` (CommonRoad XML, 2018b/2020a/...); :class:`ImportFailure` names the
-    file and the element that is wrong; ``ImportError`` if commonroad-io is missing."""
+def _open(path: Path) -> tuple[Any, Any]:
+    """commonroad-io's scenario and planning problems of ``path``, its structure checked
+    first (:mod:`~suite.importers.commonroad.structure`: well-formed, unique ids, goal
+    lanelets that exist)."""
     name = str(path)
     reader = _xml_reader()
+    check_structure(path)
     try:
-        scenario, problems = reader(str(path)).open()
+        scenario, problems = reader(name).open()
     except Exception as exc:  # commonroad-io raises whatever its parsing hits
-        _precheck(path)  # a named error (XML line, root, missing element) if it finds one
         raise ImportFailure(name, "commonRoad (commonroad-io's reader)",
                             f"{type(exc).__name__}: {exc}") from exc
-    if not scenario.lanelet_network.lanelets or not getattr(
-            problems, "planning_problem_dict", None):
-        _precheck(path)  # parses the file again: only when something is missing
-    limits, read_notes = _speed_signs(scenario.lanelet_network)
+    if not scenario.lanelet_network.lanelets:
+        raise ImportFailure(name, "lanelet", "commonroad-io read no lanelet: a road is needed")
+    return scenario, problems
+
+
+def _read_lanelets(name: str, network: Any) -> tuple[list[LaneletRecord], list[str]]:
+    """The lanelet records and the notes (ignored speed signs, re-paired bounds)."""
+    limits, read_notes = _speed_signs(network)
     lanelets = []
     repaired = []
-    for ll in scenario.lanelet_network.lanelets:
+    for ll in network.lanelets:
         try:
             lanelet, was_repaired = _lanelet(ll, limits)
         except (ValueError, TypeError) as exc:
@@ -294,6 +312,10 @@ def read_file(path: Path) -> RecordedFile:
                           f"right vertices were more than {PAIR_SKEW_TOL_M:g} m apart along "
                           f"the road): lanelets {', '.join(map(str, repaired[:20]))}"
                           f"{' ...' if len(repaired) > 20 else ''}")
+    return lanelets, read_notes
+
+
+def _read_obstacles(name: str, scenario: Any) -> tuple[list[ObstacleRecord], UncertainCount]:
     obstacles = []
     n_states = n_obstacles = 0
     for static, group in ((False, scenario.dynamic_obstacles), (True, scenario.static_obstacles)):
@@ -305,11 +327,24 @@ def read_file(path: Path) -> RecordedFile:
             obstacles.append(record)
             n_states += uncertain
             n_obstacles += int(uncertain > 0)
+    return obstacles, UncertainCount(n_states, n_obstacles)
+
+
+def read_file(path: Path) -> RecordedFile:
+    """Read ``path`` (CommonRoad XML, 2018b/2020a/...); :class:`ImportFailure` names the
+    file and the element that is wrong (also a non-finite number, and a coordinate or a
+    time beyond :mod:`~suite.importers.commonroad.limits`'s bounds); ``ImportError`` if
+    commonroad-io is missing."""
+    name = str(path)
+    scenario, problems = _open(path)
+    lanelets, read_notes = _read_lanelets(name, scenario.lanelet_network)
+    obstacles, uncertain = _read_obstacles(name, scenario)
     ego, notes = _ego(name, problems)
     dt_s = float(scenario.dt)
     if not (math.isfinite(dt_s) and dt_s > 0.0):
         raise ImportFailure(name, "commonRoad timeStepSize", f"expected > 0, got {dt_s}")
     country = str(getattr(getattr(scenario, "scenario_id", None), "country_id", "") or "ZAM")
-    return RecordedFile(name, dt_s, tuple(lanelets), tuple(obstacles), ego,
-                        UncertainCount(n_states, n_obstacles), (*notes, *read_notes),
-                        country.upper())
+    rec = RecordedFile(name, dt_s, tuple(lanelets), tuple(obstacles), ego, uncertain,
+                       (*notes, *read_notes), country.upper())
+    check_limits(rec)
+    return rec
