@@ -21,7 +21,8 @@ expanding), :mod:`~suite.catalog.build` (checking and building one scenario),
 :mod:`~suite.catalog.controller_check` (controllers),
 :mod:`~suite.catalog.network_checks` (the scenario against its network),
 :mod:`~suite.catalog.traffic_checks` (lane speeds and on-ramp traffic against it),
-:mod:`~suite.catalog.tracks` (recorded tracks files) and
+:mod:`~suite.catalog.tracks` (recorded tracks files),
+:mod:`~suite.catalog.storyboard` (the typed OpenSCENARIO storyboard a scenario runs) and
 :mod:`~suite.catalog.filtering` (selecting scenarios by name).
 """
 

@@ -32,6 +32,7 @@ from suite.catalog.specs import (
     XfailSpec,
     sumo_step_problem,
 )
+from suite.catalog.storyboard import Storyboard, StoryError, story_from_json
 from suite.catalog.tracks import (
     TracksError,
     TrackSpan,
@@ -77,6 +78,7 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
     actors = _actors(actors_raw, report)
     replay = _replay(d.get("replay", MISSING), catalog_path, report)
     xfail = _spec(XfailSpec, d.get("xfail", MISSING), "xfail", report)  # a known failure
+    story = _storyboard(d.get("storyboard", MISSING), catalog_path, report)
     _check_recorded_driver(controller, d.get("replay", MISSING), report)
     if network is not None and route is not None:
         check_placements(network, route, d.get("ego"), stalled_raw, traffic,
@@ -101,7 +103,8 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
             timeout_s=scalars["timeout_s"], friction=scalars["friction"],
             ramp_traffic=tuple(r for r in ramps if r is not None),
             actors=tuple(a for a in actors if a is not None),
-            sumo_step_s=scalars.get("sumo_step_s"), replay=replay, xfail=xfail)
+            sumo_step_s=scalars.get("sumo_step_s"), replay=replay, xfail=xfail,
+            storyboard=None if story is None else str(d["storyboard"]), story=story)
     except SpecError as exc:  # pragma: no cover - the checks above mirror these
         report.add(exc.field, exc.expected, exc.got)
         return None
@@ -235,6 +238,26 @@ def _replay(raw: Any, catalog_path: Path, report: Report) -> ReplaySpec | None:
                       handover_time_gap_s=spec.handover_time_gap_s,
                       lane_changes=spec.lane_changes, tracks_path=path,
                       ego_track=spec.ego_track)
+
+
+def _storyboard(raw: Any, catalog_path: Path, report: Report) -> Storyboard | None:
+    """The ``storyboard`` file (relative to the catalog) read and checked
+    (:func:`suite.catalog.storyboard.story_from_json`); problems at ``storyboard``."""
+    if raw is MISSING or raw is None:
+        return None
+    if not isinstance(raw, str) or not raw:
+        report.add("storyboard", "a storyboard file path (.story.json), relative to the "
+                   "catalog", raw)
+        return None
+    path = Path(raw).expanduser()
+    path = path if path.is_absolute() else catalog_path.parent / path
+    try:
+        return story_from_json(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        report.add("storyboard", f"a readable storyboard file ({exc})", raw)
+    except StoryError as exc:
+        report.add("storyboard", f"a valid storyboard ({exc})", raw)
+    return None
 
 
 RECORDED_DRIVER = "recorded"  # controllers.baselines.recorded_driver.NAME

@@ -10,6 +10,7 @@ SCENARIO_KEYS = (
     "name", "net", "route", "ego", "stalled", "traffic", "controller", "duration_s", "step_s",
     "seed", "allow_shoulder", "criteria", "record_radius_m", "timeout_s", "friction",
     "ramp_traffic", "actors", "sumo_step_s", "replay", "sweep", "search", "xfail",
+    "storyboard",
 )
 # ``search`` is read by ``hwyeval search`` (suite.search.space); run and list ignore it.
 # ``xfail`` marks one scenario as a known failure: never a default for every scenario.

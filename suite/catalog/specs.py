@@ -22,6 +22,7 @@ from suite.catalog import rules
 from suite.catalog.errors import SpecError
 from suite.catalog.frozen import FrozenMap, thaw, thaw_map
 from suite.catalog.rules import Rule
+from suite.catalog.storyboard import Storyboard
 from suite.catalog.tracks import TRACK_ID_PREFIX
 
 __all__ = ["REPLAY_LANE_CHANGES", "REPLAY_MODES", "ActorEventSpec", "ActorSpec", "Catalog",
@@ -496,6 +497,10 @@ class Scenario:
     sumo_step_s: float | None = None  # SUMO's step [s]; None: default_sumo_step(step_s)
     replay: ReplaySpec | None = None  # recorded traffic (suite.world.replay); None: none
     xfail: XfailSpec | None = None  # a known failure; None: expected to pass
+    # an OpenSCENARIO storyboard (suite.catalog.storyboard, docs/openscenario.md): the
+    # file as the catalog names it and its resolved content; None: none
+    storyboard: str | None = None
+    story: Storyboard | None = None
 
     _RULES: ClassVar[dict[str, Rule]] = {
         "name": rules.name_rule, "family": rules.name_rule,
@@ -526,6 +531,7 @@ class Scenario:
             raise SpecError("replay", "a ReplaySpec or None", self.replay)
         if self.xfail is not None and not isinstance(self.xfail, XfailSpec):
             raise SpecError("xfail", "an XfailSpec or None", self.xfail)
+        _check_story(self.storyboard, self.story)
         stalled = tuple(self.stalled)
         if any(not isinstance(s, StalledSpec) for s in stalled):
             raise SpecError("stalled", "a sequence of StalledSpec", self.stalled)
@@ -577,6 +583,11 @@ class Scenario:
             out["replay"] = self.replay.as_dict()
         if self.xfail is not None:  # likewise: an unmarked scenario keeps its identity
             out["xfail"] = _plain_dataclass(self.xfail)
+        if self.story is not None:  # likewise; its content, not only its file name
+            from suite.catalog.storyboard import story_to_json
+
+            out["storyboard"] = {"file": self.storyboard,
+                                 "sha256": _sha256(story_to_json(self.story))}
         return out
 
     def _as_dict(self) -> dict[str, Any]:
@@ -605,6 +616,20 @@ class Scenario:
             "actors": [{**_plain_dataclass(a), "events": [_plain_dataclass(e) for e in a.events]}
                        for a in self.actors],
         }
+
+
+def _check_story(storyboard: str | None, story: Storyboard | None) -> None:
+    """A storyboard file name and its :class:`Storyboard`, or neither."""
+    if (storyboard is None) != (story is None) or (
+            story is not None and not isinstance(story, Storyboard)):
+        raise SpecError("storyboard", "a storyboard file and its Storyboard, or neither",
+                        storyboard)
+
+
+def _sha256(text: str) -> str:
+    import hashlib
+
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def _plain_dataclass(obj: Any) -> dict[str, Any]:

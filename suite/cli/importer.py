@@ -16,6 +16,7 @@ import argparse
 from pathlib import Path
 
 from suite.cli.common import EXIT_INPUT, EXIT_OK, Output, err, whole_number, writing_to
+from suite.cli.import_openscenario import add_openscenario_parser
 
 
 def _metres(text: str) -> float:
@@ -60,6 +61,7 @@ def add_import_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
                    "state is the ego's start, its track the ego's recorded trajectory "
                    "(controller 'recorded'); one FILE only (docs/recorded.md)")
     c.set_defaults(func=cmd_import_commonroad)
+    add_openscenario_parser(fmt)
 
 
 def _line(r: object) -> str:

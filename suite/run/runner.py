@@ -66,7 +66,7 @@ from suite.run.recorded import (
 )
 from suite.run.recorder import TraceRecorder
 from suite.run.safety import SafetyMonitor
-from suite.run.stop import ScenarioTimeout, StandardStop
+from suite.run.stop import ScenarioTimeout, StandardStop, StopRule, StoryboardStop
 from suite.world.protocol import WorldSummary
 from suite.world.sumo import SumoWorld
 
@@ -208,10 +208,18 @@ def _build(scenario: Scenario, run_dir: Path, vehicle: VehicleParams, options: R
     stages = Stages(dynamics=dynamics, behaviour=behaviour,
                     lanes=lanes,
                     controller=controller, monitor=SafetyMonitor(vehicle), recorder=recorder,
-                    stop=StandardStop(path.length_m, options.timeout_s, wall0),
+                    stop=_stop_rule(scenario, world, StandardStop(path.length_m,
+                                                                  options.timeout_s, wall0)),
                     set_speed_mps=target, step_s=dt)
     return _Run(stages, world, recorder, info, road_record(network, route, reference, path),
                 float(policy.detection_distance_m) if policy is not None else 0.0, n_steps)
+
+
+def _stop_rule(scenario: Scenario, world: SumoWorld, standard: StandardStop) -> StopRule:
+    """The standard stop rule; with a storyboard, its stop trigger ends the run too."""
+    if scenario.story is None:
+        return standard
+    return StoryboardStop(standard, world.storyboard_stopped_at_s)
 
 
 def run_scenario(scenario: Scenario, out_dir: Path, options: RunOptions | None = None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -50,3 +51,20 @@ class StandardStop:
         if ego.s_m >= self.reference_length_m - END_OF_ROUTE_MARGIN_M:
             return "end of route"
         return None
+
+
+@dataclass
+class StoryboardStop:
+    """``inner``'s reasons first, then the scenario's OpenSCENARIO storyboard: the run
+    ends at the step after its stop trigger fired (``stopped_at_s()``: that run time
+    [s], None while it has not; docs/openscenario.md)."""
+
+    inner: StopRule
+    stopped_at_s: Callable[[], float | None]
+
+    def check(self, t_s: float, ego: EgoState, safety: SafetySample) -> str | None:
+        reason = self.inner.check(t_s, ego, safety)
+        if reason is not None:
+            return reason
+        at = self.stopped_at_s()
+        return None if at is None else f"storyboard stop trigger at t = {at:.2f} s"

@@ -57,6 +57,7 @@ from suite.world.protocol import EgoPose, Scene, WorldEgo, WorldSummary
 from suite.world.replay import HandoverEgo, ReplayAgents
 from suite.world.routes import EGO_ID, STALLED_PREFIX, RouteFile
 from suite.world.ssm import parse_ssm
+from suite.world.storyboard import StoryRunner
 
 HAZARD_SIGNAL = 1 << 2  # SUMO VEH_SIGNAL_BLINKER_EMERGENCY
 # The ego's subscribed variables (traci.constants' codes: VAR_POSITION, VAR_ANGLE,
@@ -123,6 +124,11 @@ class SumoWorld:
         self._held_dir: tuple[np.ndarray, np.ndarray] | None = None
         self._replay: ReplayAgents | None = None
         self._replay_origin_s = 0.0  # SUMO time of the run's t = 0, known before it
+        # the OpenSCENARIO storyboard (suite.world.storyboard), if the scenario has one
+        self._story = (StoryRunner(scenario.story, network, tuple(scenario.route),
+                                   float(scenario.ego.pos_m))
+                       if scenario.story is not None else None)
+        self._story_origin_s = 0.0  # SUMO time of the run's t = 0, known before it
 
     @property
     def ssm_file(self) -> Path:
@@ -154,6 +160,9 @@ class SumoWorld:
             if vid in libsumo.vehicle.getIDList():
                 libsumo.vehicle.setSignals(vid, HAZARD_SIGNAL)
         self._actors.start(libsumo)
+        if self._story is not None:
+            self._story.start(libsumo)
+            self._story_origin_s = self._time() + self.rate.world_step_s
         self._start_replay(libsumo, ego_pose is not None)
         if self.externally_driven:
             libsumo.vehicle.setSpeedMode(EGO_ID, 32)
@@ -166,7 +175,7 @@ class SumoWorld:
             [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_LENGTH, tc.VAR_WIDTH,
              tc.VAR_LANE_INDEX, tc.VAR_ROAD_ID])
         hits: tuple[SumoCollision, ...] = ()
-        if ego_pose is not None or self._replay is not None:
+        if ego_pose is not None or self._replay is not None or self._story is not None:
             if ego_pose is not None:
                 self._move_ego(ego_pose)
             hits = self._advance()
@@ -195,6 +204,11 @@ class SumoWorld:
                      traffic=extrapolate_traffic(held.traffic, tau, self._held_dir), ego=held.ego)
 
     def close(self) -> WorldSummary:
+        if self._story is not None:
+            try:
+                self._story.write_log(self.work_dir / "storyboard.json")
+            except OSError:  # pragma: no cover - the run's own files are written later
+                pass
         if self._ls is not None:
             try:
                 self._ls.close()
@@ -210,6 +224,11 @@ class SumoWorld:
         return WorldSummary(stalled=self._stalled, collisions=tuple(self._collisions),
                             ssm=summary, ssm_times_s=times, ssm_ttc_s=ttcs,
                             t_origin_s=self._t_origin, replay=self._replay_summary())
+
+    def storyboard_stopped_at_s(self) -> float | None:
+        """The run time [s] the storyboard's stop trigger fired at (None: not yet, or
+        no storyboard)."""
+        return None if self._story is None else self._story.engine.stopped_at_s
 
     def _start_replay(self, ls: Any, ego_pose_given: bool) -> None:
         """Read the scenario's tracks (once) and prepare the recorded vehicles; the run's
@@ -275,6 +294,9 @@ class SumoWorld:
     def _advance(self) -> tuple[SumoCollision, ...]:
         """One SUMO step (the actors' commands first); the collisions involving the ego."""
         self._actors.apply(self._ls, self._time() - self._t_origin)
+        if self._story is not None:
+            self._story.apply(self._ls, self._time() - self._story_origin_s,
+                              self.rate.world_step_s)
         if self._replay is not None:
             dt = self.rate.world_step_s
             self._replay.apply(self._ls, int(round(

@@ -1,0 +1,91 @@
+"""The public ALKS interpretation of UN R157 (../shared/openscenario/alks, never copied
+here): every template imports, every variation file expands to its parameter sets (the
+count per file below), and every template runs in SUMO, none of them in error (slow)."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from suite.catalog import load_catalog
+from suite.cli import main
+from suite.importers.openscenario import ImportOptions, import_files
+from suite.importers.openscenario.pipeline import import_file
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "openscenario" / "alks"
+LOGICAL = SHARED / "logical_scenarios"
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(not LOGICAL.is_dir(), reason=f"{LOGICAL} (the shared "
+                                 "OpenSCENARIO files) is not there")]
+
+# parameter sets per variation file, and how many of them violate the template's
+# constraints (the files say such sets are to be discarded)
+SETS = {
+    "4_1_1_free_driving": (12, 0), "4_1_2_swerving_lead_vehicle": (300, 0),
+    "4_1_3_side_vehicle": (1200, 0), "4_2_1_fully_blocking_target": (360, 0),
+    "4_2_2_partially_blocking_target": (6120, 0), "4_2_3_crossing_pedestrian": (120, 0),
+    "4_2_4_multiple_blocking_targets": (1800, 0),
+    "4_3_1_follow_lead_vehicle_comfortable": (2400, 300),
+    "4_3_2_follow_lead_vehicle_emergency_brake": (1400, 175),
+    "4_4_1_cut_in_no_collision": (52500, 22750), "4_5_1_cut_out_fully_blocking": (8640, 600),
+    "4_5_2_cut_out_multiple_blocking_targets": (43200, 3000),
+    "4_6_1_forward_detection_range": (6, 0), "4_6_2_lateral_detection_range": (2, 0),
+}
+
+
+def _templates() -> list[Path]:
+    return sorted((LOGICAL / "concrete_scenarios").glob("*_template.xosc"))
+
+
+@pytest.fixture(scope="module")
+def alks(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("alks")
+    outcome = import_files(_templates(), out)
+    assert not outcome.failures, [str(f) for f in outcome.failures]
+    assert len(outcome.results) == 15
+    return out
+
+
+def test_every_template_imports(alks: Path) -> None:
+    catalog = load_catalog(alks / "catalog.toml")
+    assert len(catalog) == 15
+    assert all(s.story is not None for s in catalog)
+    cut_in = catalog.get("alks_scenario_4_4_1_cut_in_no_collision_template")
+    assert cut_in.ego.speed_mps == pytest.approx(60.0 / 3.6, abs=1e-5)
+    assert cut_in.story is not None
+    (init,) = cut_in.story.inits
+    # ds = 30 + (-10 x (-20 / 3.6)) m ahead of the ego's reference point, both fronts 3.9
+    assert init.position.pos_m - cut_in.ego.pos_m == pytest.approx(30.0 + 200.0 / 3.6,
+                                                                   abs=1e-3)
+    assert init.speed_mps == pytest.approx(40.0 / 3.6)
+
+
+@pytest.mark.parametrize("stem", sorted(SETS))
+def test_every_variation_file_expands(stem: str, tmp_path: Path) -> None:
+    path = LOGICAL / f"alks_scenario_{stem}_variation.xosc"
+    r = import_file(path, tmp_path, ImportOptions())
+    assert (r.sets, r.invalid_sets) == SETS[stem]
+
+
+def test_every_template_runs_none_in_error(alks: Path, tmp_path: Path) -> None:
+    out = tmp_path / "runs"
+    rc = main(["run", str(alks / "catalog.toml"), "--out", str(out), "--jobs", "1",
+               "--no-log", "--no-fail"])
+    assert rc == 0
+    with (out / "results.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 15
+    statuses = {r["scenario"]: r["status"] for r in rows}
+    assert not [n for n, s in statuses.items() if s in ("error", "timeout")], statuses
+    # 4.4_1 ends 10 s after the cut-in completes: its storyboard's stop trigger ends the run
+    run = json.loads((out / "alks_scenario_4_4_1_cut_in_no_collision_template" / "run.json")
+                     .read_text())
+    assert run["outcome"]["stop_reason"].startswith("storyboard stop trigger at t = ")
+    log = json.loads((out / "alks_scenario_4_4_1_cut_in_no_collision_template" / "sumo"
+                      / "storyboard.json").read_text())
+    end = next(t for t, _, n, w in log["transitions"]
+               if n == "CutInAction" and w == "endTransition")
+    assert log["stopped_at_s"] == pytest.approx(end + 10.0, abs=0.2)
