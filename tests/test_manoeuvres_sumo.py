@@ -6,32 +6,19 @@ back from the run directory (trace, verdict)."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from catalog_runs import run_catalog
 from feature_nets import lane_drop_net, taper_net
 
 from reports.record import load_run
 from suite.stress.netgen import NetLayout, build_net, route_of
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
-ROOT = Path(__file__).resolve().parents[1]
 LAT_BUDGET_MPS2 = 4.0  # LaneChangeParams / LateralRefParams max_lat_acc_mps2
-
-
-def run_catalog(base: Path, text: str) -> Path:
-    catalog = base / "catalog.toml"
-    catalog.write_text(text)
-    out = base / "out"
-    proc = subprocess.run([sys.executable, "-m", "suite", "run", str(catalog), "--out",
-                           str(out), "--jobs", "2", "--no-log"], cwd=ROOT,
-                          capture_output=True, text=True, timeout=900)
-    assert proc.returncode in (0, 1), proc.stdout + proc.stderr
-    return out
 
 
 def reversals(t: np.ndarray, side: np.ndarray, window_s: float = 1.0) -> int:

@@ -9,13 +9,12 @@ target fell from 4.5 to 0 m/s and an ellipse was put on the ego for 15 steps."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from catalog_runs import run_catalog
 
 from controllers.plant.vehicle_model import VehicleParams
 from controllers.two_loop.fallback import FallbackParams
@@ -25,7 +24,6 @@ from reports.record import load_run
 from suite.catalog.tracks import Track, TrackSet, write_tracks
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
-ROOT = Path(__file__).resolve().parents[1]
 DT = 0.02
 
 CATALOG = """
@@ -88,15 +86,8 @@ def _jitter_tracks(path: Path) -> None:
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     base = tmp_path_factory.mktemp("threats")
-    catalog = base / "catalog.toml"
-    catalog.write_text(CATALOG)
     _jitter_tracks(base / "jitter.tracks.parquet")
-    out = base / "out"
-    proc = subprocess.run([sys.executable, "-m", "suite", "run", str(catalog), "--out",
-                           str(out), "--jobs", "2", "--no-log"], cwd=ROOT,
-                          capture_output=True, text=True, timeout=900)
-    assert proc.returncode in (0, 1), proc.stdout + proc.stderr
-    return out
+    return run_catalog(base, CATALOG)
 
 
 def _gap_and_closing(run_dir: Path, vehicle: str) -> tuple[np.ndarray, np.ndarray]:
