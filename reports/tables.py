@@ -2,9 +2,10 @@
 
 Nothing here evaluates: every status, metric and failure is the verdict stored in
 ``run.json`` by the runner (see :func:`reports.metrics.evaluate`). A run directory that
-cannot be read (malformed ``run.json``, a broken or missing file, no verdict for a run
-that ended 'ok') becomes an 'error' entry carrying the reason, so one bad directory
-never stops the report of the others.
+cannot be read (malformed ``run.json``, a file missing, changed or corrupt: the checks of
+:func:`reports.record.load_run`; no verdict for a run that ended 'ok') becomes an
+'error' entry carrying the reason (``RunEntry.unreadable``, naming the file), so one bad
+directory never stops the report of the others.
 """
 
 from __future__ import annotations
@@ -29,19 +30,20 @@ from reports.record import (
     SERIES,
     TRACE,
     TRACEBACK,
+    DamagedRun,
     Failure,
     MetricValue,
     RunInfo,
     RunOutcome,
     RunRecord,
     Verdict,
-    incomplete_files,
     iter_run_dirs,
     load_run,
 )
 from reports.record.codec import write_text_atomic
 from reports.record.meta import END_OK, STATUSES
 
+UNKNOWN = "?"  # the controller of a run directory whose run.json cannot be read
 LEAD_COLUMNS = ("scenario", "controller", "variant", "status", "collision", "min_gap_m",
                 "progress_m", "sim_time_s", "wall_s")
 
@@ -71,16 +73,18 @@ SUMMARY_TIMING: dict[str, tuple[int, ...]] = {"step": (50, 99), "outer": (50, 99
 
 @dataclass(frozen=True)
 class Parts:
-    """Which per-step files of a run directory to load besides run.json."""
+    """Which files of a run directory to load besides run.json (every listed file is
+    checked whichever are loaded: :func:`reports.record.load_run`)."""
 
     trace: bool = False
     neighbours: bool = False
     arrays: bool = False
     series: bool = False
+    road: bool = False
 
 
 VERDICTS_ONLY = Parts()
-EVERYTHING = Parts(trace=True, neighbours=True, arrays=True, series=True)
+EVERYTHING = Parts(trace=True, neighbours=True, arrays=True, series=True, road=True)
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,8 @@ class RunEntry:
     status: pass | fail | error | timeout (an unreadable directory is 'error').
     error: why a run is 'error' or 'timeout' (its traceback, or the reason it cannot be
         read); '' otherwise.
+    unreadable: why the directory cannot be read as a run (naming the file: run.json
+        malformed, a file missing, changed or corrupt, never judged); '' when it can.
     record: the loaded parts (:class:`Parts`), None when the directory could not be read.
     variant: the controller and its options that differ among the runs reported
         together (:mod:`reports.variants`); the controller name until set.
@@ -103,6 +109,14 @@ class RunEntry:
     error: str = ""
     record: RunRecord | None = None
     variant: str = ""
+    unreadable: str = ""
+
+    def __post_init__(self) -> None:
+        if self.status not in STATUSES:
+            raise ValueError(f"RunEntry.status must be one of {STATUSES}, got {self.status!r}")
+        if self.unreadable and (self.status != "error" or self.record is not None):
+            raise ValueError("RunEntry: an unreadable run directory is an 'error' entry "
+                             f"without a record, got {self.status!r}")
 
     @property
     def label(self) -> str:
@@ -205,9 +219,6 @@ def incomplete(record: RunRecord, parts: Parts) -> str:
         if len(record.series) != len(record.trace):
             return (f"{run_dir.name}: {SERIES} has {len(record.series)} rows, "
                     f"{TRACE} {len(record.trace)}")
-    damaged = incomplete_files(run_dir, record.files) if record.run_dir is not None else []
-    if damaged:  # truncated or deleted after the run wrote them: not this run any more
-        return f"{run_dir.name}: incomplete run directory ({'; '.join(damaged)})"
     return ""
 
 
@@ -224,19 +235,34 @@ def read_entry(run_dir: Path, parts: Parts = VERDICTS_ONLY) -> RunEntry:
     """One run directory as a :class:`RunEntry` (an 'error' entry if it cannot be read)."""
     try:
         record = load_run(run_dir, trace=parts.trace, neighbours=parts.neighbours,
-                          arrays=parts.arrays, series=parts.series)
+                          arrays=parts.arrays, series=parts.series, road=parts.road)
     except Exception as exc:  # any unreadable directory is reported, never fatal
-        return RunEntry(run_dir, run_dir.name, "?", scenario_family("", run_dir.name), "error",
-                        error=f"report: cannot read {run_dir}: {type(exc).__name__}: {exc}")
+        return unreadable_entry(run_dir, exc)
     info = record.info
     family = scenario_family(info.family, info.scenario)
     problem = incomplete(record, parts)
     if problem:
         return RunEntry(run_dir, info.scenario, info.controller, family, "error",
-                        error=f"report: {problem}")
+                        error=f"report: {problem}", unreadable=problem)
     status = record.status
     error = _error_text(record) if status in ("error", "timeout") else ""
     return RunEntry(run_dir, info.scenario, info.controller, family, status, error, record)
+
+
+def unreadable_entry(run_dir: Path, exc: Exception) -> RunEntry:
+    """The 'error' entry of a run directory :func:`reports.record.load_run` refused with
+    ``exc``: ``unreadable`` says why, naming the file; the scenario and controller are
+    run.json's when it could be read (only another file is damaged), else the
+    directory's name and '?'."""
+    if isinstance(exc, DamagedRun):
+        why = "; ".join(exc.problems)
+    else:
+        why = f"{type(exc).__name__}: {exc}"
+    info = exc.info if isinstance(exc, DamagedRun) else None
+    scenario, controller, family = ((info.scenario, info.controller, info.family)
+                                    if info is not None else (run_dir.name, UNKNOWN, ""))
+    return RunEntry(run_dir, scenario, controller, scenario_family(family, scenario), "error",
+                    error=f"report: cannot read {run_dir}: {why}", unreadable=why)
 
 
 def find_entry(runs: Sequence[RunEntry], scenario: str, controller: str) -> RunEntry | None:

@@ -248,16 +248,22 @@ def test_compare_reads_the_stored_verdicts_of_complete_runs(base: Path, tmp_path
                 part.unlink()
     gone = compare_runs(base, new, tmp_path / "cmp")
     assert gone.exit_code == 1
-    assert all("incomplete run directory" in r.note for r in gone.of_kind("new_failure"))
+    rows = gone.of_kind("unreadable")
+    assert len(rows) == len([d for d in new.iterdir() if (d / RUN_JSON).is_file()])
+    assert all(r.gate and r.category == "unreadable" and "new: " in r.note
+               and "trace.parquet: missing" in r.note for r in rows)
+    assert not gone.of_kind("new_failure")  # an unreadable run is no behaviour finding
     # the verdicts alone decide: the same per-step files, nothing is re-evaluated
     new = _copy(base, tmp_path, "again")
     assert compare_runs(base, new, tmp_path / "cmp1").exit_code == 0
     # a run directory whose run.json is unreadable counts as an error run
     (new / "cruise_straight__ctrl_a" / RUN_JSON).write_text("{")
     result = compare_runs(base, new, tmp_path / "cmp2")
-    assert result.new_failures == ["cruise_straight [ctrl_a]"]
-    (row,) = result.of_kind("new_failure")
-    assert "pass → error" in row.note and "cannot read" in row.note
+    (row,) = result.regressions
+    assert (row.key, row.kind, row.category) == ("cruise_straight [ctrl_a]", "unreadable",
+                                                 "unreadable")
+    assert "new: RecordError" in row.note and "run.json" in row.note
+    assert result.exit_code == 1
 
 
 def test_new_criterion_is_told_by_the_typed_failure(base: Path, tmp_path: Path) -> None:

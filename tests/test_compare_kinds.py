@@ -169,7 +169,7 @@ def test_the_cli_json_kinds_the_same_night_and_the_default_output(base: Path,
     assert "limits_changed" in kinds and kinds <= set(CATEGORIES)
     assert {row["finding"] for row in doc["rows"] if row["kind"] == "limits_changed"} >= {
         "new_failure"}
-    assert set(doc["gating_kinds"]) == {"behaviour_regression", "known_failure",
+    assert set(doc["gating_kinds"]) == {"behaviour_regression", "known_failure", "unreadable",
                                         "removed_scenario"}
     # the comparison's files beside the new night, not inside it
     assert (tmp_path / "new.compare" / "compare.html").is_file()

@@ -107,10 +107,14 @@ def night_directory(out: Path, k: int) -> Path:
     """Night ``k`` as an output directory: a manifest, results.csv and per run a
     run.json of a real one's size (~25 kB: the verdict's metric entries, the criteria,
     the content hash) — what :func:`reports.history.read_night` reads."""
+    import dataclasses
+
     import pandas as pd
 
+    import tests.synthetic_runs as sr
     from reports.manifest import Manifest, write_manifest
     from reports.provenance import Provenance
+    from reports.record.codec import to_plain
 
     rec = night(k)
     out.mkdir(parents=True)
@@ -125,9 +129,12 @@ def night_directory(out: Path, k: int) -> Path:
         metrics = [{"name": m, "value": float(v), "unit": "s", "kind": "safety",
                     "better": "higher", "worst_step": 17, "series": "ttc_ahead_s"}
                    for m, v in zip(rec.metric_names, rec.values_2d[i], strict=True)]
+        # every key the typed reader needs (read_night reads each run through it)
+        info = to_plain(dataclasses.replace(
+            sr.base_info(name, "two_loop"), scenario_spec={
+                "content_sha256": rec.scenario_hashes[i]}))
         (out / name / "run.json").write_text(json.dumps({
-            "schema": 2, "info": {"scenario": name, "scenario_spec": {
-                "content_sha256": rec.scenario_hashes[i]}},
+            "schema": 2, "info": info, "outcome": {},
             "verdict": {"status": rec.statuses[i], "metrics": metrics,
                         "criteria": {"min_ttc_s": 0.95, "max_collision": None}}}))
     frame = pd.DataFrame(rec.values_2d, columns=list(rec.metric_names))

@@ -144,8 +144,9 @@ def test_unreadable_run_directories_are_error_rows(tmp_path: Path) -> None:
     assert df.loc["rear_end__ctrl_a", "status"] == "fail"  # the others are intact
     assert df.loc["cruise_straight__ctrl_a", "scenario"] == "cruise_straight__ctrl_a"
     junit, html = paths.junit_xml.read_text(), paths.report_html.read_text()
-    for reason in ("info.seed: expected an integer", "series.parquet is missing",
-                   "a readable parquet file", "a readable JSON file"):
+    # each names the file: run.json lists the others with their size and checksum
+    for reason in ("info.seed: expected an integer", "series.parquet: missing",
+                   "trace.parquet: 11 bytes, run.json says", "a readable JSON file"):
         assert reason in junit and reason in html, reason
 
 

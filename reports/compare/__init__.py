@@ -1,7 +1,11 @@
 """``hwyeval compare BASE NEW``: did the new catalog output regress against the base?
 
-Only stored verdicts are read (``run.json``; an unreadable run directory is an
-'error' run) and each side's ``manifest.json`` (provenance, load).
+Only stored verdicts are read (``run.json``, through :func:`reports.record.load_run`,
+which checks every file run.json lists against its checksum) and each side's
+``manifest.json`` (provenance, load). A run directory that cannot be read (run.json
+malformed, a file missing, changed or corrupt) is an ``unreadable`` finding naming the
+file: it gates on the new side and is reported on the base side; its pair is not
+compared otherwise (its 'error' status says nothing of behaviour).
 
 * **Behaviour gates** (exit 1): a run that passed and no longer does, a worse status,
   a newly failed criterion, a safety/comfort/tracking metric worse beyond its tolerance,
@@ -32,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from reports.compare.findings import CompareRow, DuplicateRuns, match_runs, metric_rows
-from reports.compare.kinds import CATEGORIES, pair_findings
+from reports.compare.kinds import CATEGORIES, pair_findings, unreadable_rows
 from reports.compare.timing import TimingLine, load_note, timing_lines
 from reports.compare.tolerances import MetricTolerance, Tolerances
 from reports.manifest import Manifest, read_manifest
@@ -139,6 +143,7 @@ def compare_evaluated(base: list[RunEntry], new: list[RunEntry],
     pairs: list[tuple[RunEntry, RunEntry]] = []
     for m in match_runs(base, new):
         b, n = m.base, m.new
+        rows += unreadable_rows(m.key, b, n)
         if n is None and b is not None:
             rows.append(CompareRow(m.key, b.scenario, b.controller, "missing",
                                    note="in base only", gate=tol.missing_is_regression,
@@ -151,6 +156,8 @@ def compare_evaluated(base: list[RunEntry], new: list[RunEntry],
                                        category="new_scenario"))
             continue
         pairs.append((b, n))
+        if b.unreadable or n.unreadable:
+            continue  # said by its unreadable row
         both_judged = b.status in ("pass", "fail") and n.status in ("pass", "fail")
         metrics = metric_rows(m.key, b, n, tol) if both_judged else []
         rows.extend(pair_findings(m.key, b, n, metrics))

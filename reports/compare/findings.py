@@ -44,7 +44,7 @@ from typing import Any
 
 from reports.compare.tolerances import HIGHER_IS_WORSE, Tolerances
 from reports.record import Failure, MetricValue
-from reports.tables import RunEntry
+from reports.tables import UNKNOWN, RunEntry
 
 STATUS_RANK = {"pass": 0, "fail": 1, "timeout": 2, "error": 2}
 BEHAVIOUR_GATES = frozenset({"new_failure", "worse_status", "new_criterion",
@@ -157,9 +157,11 @@ def match_runs(base: Sequence[RunEntry], new: Sequence[RunEntry]) -> list[Matche
     def label(k: str, b: RunEntry | None, n: RunEntry | None) -> str:
         if catalog_swap or not by_name:
             return k
-        if b is not None and n is not None and b.controller != n.controller:
-            return f"{k} [{b.controller} → {n.controller}]"
-        return f"{k} [{(n if n is not None else b).controller}]"  # type: ignore[union-attr]
+        # an unreadable run.json names no controller: the other side's says it
+        known = [r.controller for r in (b, n) if r is not None and r.controller != UNKNOWN]
+        if len(known) == 2 and known[0] != known[1]:
+            return f"{k} [{known[0]} → {known[1]}]"
+        return f"{k} [{known[-1] if known else UNKNOWN}]"
 
     return [Matched(label(k, bm.get(k), nm.get(k)), bm.get(k), nm.get(k))
             for k in sorted(set(bm) | set(nm))]

@@ -25,6 +25,9 @@ Categories (``CompareRow.category``; ``compare --json`` calls it ``kind``):
 ``sut_changed``           the SUT differs (controller, options, code): what changed
 ``removed_scenario``      in base only: gates unless ``missing_is_regression = false``
 ``new_scenario``          in new only: informational
+``unreadable``            a run directory that cannot be read (run.json malformed, a
+                          file missing, changed or corrupt; the note names it): gates
+                          on the new side, is reported on the base side
 ``timing``                wall-clock findings: warn (gate with ``--timing-gate``)
 ``improvement``           fixed runs and metrics better beyond tolerance
 ``info``                  the rest (status changes that are not worse, NaN metrics)
@@ -52,13 +55,15 @@ from reports.metrics.values import Measured
 from reports.record import Failure
 from reports.tables import RunEntry
 
-__all__ = ["CATEGORIES", "GATING_CATEGORIES", "pair_change", "pair_findings", "under_limits"]
+__all__ = ["CATEGORIES", "GATING_CATEGORIES", "pair_change", "pair_findings", "under_limits",
+           "unreadable_rows"]
 
 CATEGORIES = ("behaviour_regression", "known_failure", "limits_changed", "waived",
-              "test_changed", "sut_changed", "removed_scenario", "new_scenario", "timing",
-              "improvement", "info")
+              "test_changed", "sut_changed", "removed_scenario", "new_scenario", "unreadable",
+              "timing", "improvement", "info")
 # categories whose findings may gate (timing too, with --timing-gate)
-GATING_CATEGORIES = ("behaviour_regression", "known_failure", "removed_scenario")
+GATING_CATEGORIES = ("behaviour_regression", "known_failure", "removed_scenario",
+                     "unreadable")
 TIMING_KINDS = frozenset({"timing_slower", "timing_faster"})
 TEST_TEXT = ("the test changed (net, route, ego start, stalled cars, actors, traffic, "
              "replay tracks, duration or step): not comparable run for run, does not gate")
@@ -220,3 +225,17 @@ def pair_findings(key: str, b: RunEntry, n: RunEntry, metric_rows: list[CompareR
     rows += [categorised(r, change) for r in metric_rows]
     rows = _xfail_rows(key, n, rows)
     return rows + change_rows(key, b, n, change)
+
+
+def unreadable_rows(key: str, b: RunEntry | None, n: RunEntry | None) -> list[CompareRow]:
+    """One ``unreadable`` finding per side whose run directory cannot be read (the note
+    says which side and why, naming the file): on the new side it gates (a night whose
+    runs cannot be read has not shown that it did not regress), on the base side it is
+    reported and does not gate (there is nothing to regress from)."""
+    rows = []
+    for side, entry in (("base", b), ("new", n)):
+        if entry is not None and entry.unreadable:
+            rows.append(CompareRow(key=key, scenario=entry.scenario, controller=entry.controller,
+                                   kind="unreadable", note=f"{side}: {entry.unreadable}",
+                                   gate=side == "new", category="unreadable"))
+    return rows

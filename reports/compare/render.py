@@ -76,6 +76,9 @@ CHANGED_TESTS = (
     ("test_changed", "test changed: not comparable run for run (does not gate)"))
 
 
+UNREADABLE_BASE = "base run directories that cannot be read (reported; do not gate)"
+
+
 def _listed(rows: Sequence[CompareRow], indent: str = "  ") -> list[str]:
     lines = [indent + row_line(r) for r in rows[:MAX_LISTED]]
     if len(rows) > MAX_LISTED:
@@ -111,6 +114,8 @@ def _verdict(result: CompareResult) -> str:
         return "FAIL: timing slower than allowed (--timing-gate)"
     if result.regressions and all(r.kind == "xpass" for r in result.regressions):
         return "FAIL: a strict known failure passed (remove its xfail)"
+    if result.regressions and all(r.kind == "unreadable" for r in result.regressions):
+        return "FAIL: run directories of new cannot be read"
     if result.regressions:
         return "FAIL: behaviour regressed"
     return "OK: no behaviour regression" + (
@@ -135,6 +140,10 @@ def summary_text(result: CompareResult) -> str:
         if rows:
             lines.append(f"{title} ({len(rows)}):")
             lines += _listed(rows)
+    unreadable_base = [r for r in result.of_category("unreadable") if not r.gate]
+    if unreadable_base:
+        lines.append(f"{UNREADABLE_BASE} ({len(unreadable_base)}):")
+        lines += _listed(unreadable_base)
     lines += _timing_block(result)
     health = result.of_kind("health_change")
     if health:
@@ -355,6 +364,7 @@ def write_compare_html(result: CompareResult, path: Path, base: Sequence[RunEntr
                          f"<td>{esc(cells[1])}</td></tr>")
     now = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
     links = run_links(result, path, base, new)
+    unreadable_base = [r for r in result.of_category("unreadable") if not r.gate]
     parts = [
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
         '<link rel="icon" href="data:,">'
@@ -370,6 +380,7 @@ def write_compare_html(result: CompareResult, path: Path, base: Sequence[RunEntr
                        *(r for c, _ in CHANGED_TESTS for r in result.of_category(c))],
                       base, new),
         *(_table(result.of_category(c), f"{t} (do not gate)", links) for c, t in CHANGED_TESTS),
+        _table(unreadable_base, UNREADABLE_BASE, links) if unreadable_base else "",
         _timing_table(result),
         _table(result.warnings, "Warnings (timing, health)", links),
         _provenance_table(result),

@@ -2,9 +2,10 @@
 
 A *night* is one catalog output directory (``hwyeval run --out DIR``): its
 ``manifest.json`` (who ran what, where, when) and its run directories, read with the
-reports' own reader (:func:`reports.tables.collect_runs`; the rows are those of
-results.csv). :func:`read_night` turns it into a :class:`NightRecord`,
-:func:`add_night` writes that into the database in one transaction.
+reports' own reader (:func:`reports.tables.collect_runs`, the checks of
+:func:`reports.record.load_run` included: a run directory that cannot be read is an
+'error' run; the rows are those of results.csv). :func:`read_night` turns it into a
+:class:`NightRecord`, :func:`add_night` writes that into the database in one transaction.
 
 Writers are serialised by a lock file next to the database (``DB.lock``, an exclusive
 ``flock``); readers take it shared. A writer waits up to ``wait_s`` for it and then
@@ -276,23 +277,38 @@ def parse_started(text: str, where: str) -> _dt.datetime:
 
 
 def results_of(out: Path, run_dirs: Sequence[Path]) -> pd.DataFrame:
-    """The night's results.csv rows, one per run directory. The file the run wrote is
-    read when it covers exactly these run directories and is newer than every
-    run.json; otherwise the rows are rebuilt from the run directories with the
-    reports' reader (:func:`reports.tables.results_frame`, as ``hwyeval report``)."""
+    """The night's results.csv rows, one per run directory. Every run directory is
+    read with the reports' reader (:func:`reports.tables.collect_runs`, through
+    :func:`reports.record.load_run`: a directory that cannot be read, a file changed
+    or corrupt since the run wrote it, is an 'error' run). When every one can be read,
+    the file the run wrote is used if it covers exactly these run directories and is
+    newer than every run.json; otherwise the rows are rebuilt from the entries
+    (:func:`reports.tables.results_frame`, as ``hwyeval report``)."""
+    entries = collect_runs(out)
+    frame = _written_results(out, run_dirs)
+    if frame is not None and not any(e.unreadable for e in entries):
+        return frame
+    return results_frame(entries)
+
+
+def _written_results(out: Path, run_dirs: Sequence[Path]) -> pd.DataFrame | None:
+    """results.csv as the run wrote it, when it covers exactly ``run_dirs`` and is newer
+    than every run.json (None otherwise)."""
     path = out / RESULTS_CSV
-    if path.is_file():
-        try:
-            # only an empty cell is missing: a scenario named "NA" stays a name
-            frame = pd.read_csv(path, keep_default_na=False, na_values=[""])
-        except (OSError, ValueError, pd.errors.ParserError):
-            frame = None
-        if frame is not None and "run" in frame.columns:
-            newest = max((d / RUN_JSON).stat().st_mtime for d in run_dirs)
-            if (sorted(frame["run"].astype(str)) == sorted(d.name for d in run_dirs)
-                    and path.stat().st_mtime >= newest):
-                return frame
-    return results_frame(collect_runs(out))
+    if not path.is_file():
+        return None
+    try:
+        # only an empty cell is missing: a scenario named "NA" stays a name
+        frame = pd.read_csv(path, keep_default_na=False, na_values=[""])
+    except (OSError, ValueError, pd.errors.ParserError):
+        return None
+    if "run" not in frame.columns:
+        return None
+    newest = max((d / RUN_JSON).stat().st_mtime for d in run_dirs)
+    if (sorted(frame["run"].astype(str)) == sorted(d.name for d in run_dirs)
+            and path.stat().st_mtime >= newest):
+        return frame
+    return None
 
 
 def _metric_matrix(frame: pd.DataFrame) -> tuple[tuple[str, ...], np.ndarray]:

@@ -140,17 +140,22 @@ def _compare_base(args: argparse.Namespace) -> str | None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    from suite.rerun.viewer import failed_runs, open_logs, serve_web
+    from suite.rerun.viewer import failed_entries, open_logs, serve_web
 
     target = Path(args.dir)
     if not target.exists():
         raise UsageError(f"{target}: no such run directory, output directory or .rrd file")
     items = [target]
     if args.failed:
-        items = failed_runs(target)
-        if not items:
+        failed = failed_entries(target)
+        if not failed:
             Output().line(f"{target}: every run passed, nothing to open")
             return EXIT_OK
+        for entry in failed:  # listed to open (its log may still be there), and why
+            if entry.unreadable:
+                err(f"{entry.run_dir}: unreadable run directory (status error): "
+                    f"{entry.unreadable}")
+        items = [entry.run_dir for entry in failed]
     if args.web:
         return serve_web(items, port=args.port, bind=args.bind)
     # the --web command to suggest is this one again (view takes one PATH, not the

@@ -12,8 +12,9 @@ Rules (checked by :func:`check_out_dir` before anything is written; a violation 
 * ``--resume`` keeps every run finished with a verdict (pass or fail) whose scenario has
   the same content hash (:func:`suite.run.info.scenario_content_sha256`), whose record
   was written by the same hwyeval version and sources and the same plug-in controller
-  source (:mod:`suite.run.code_identity`), and whose files are all there with the
-  checksums run.json lists, and runs the others (the terminal says which and why); their old
+  source (:mod:`suite.run.code_identity`), and that :func:`reports.record.load_run` (the
+  one reader of run directories) reads: every file run.json lists there with its
+  checksum; it runs the others (the terminal says which and why); their old
   directories (an error, a timeout, another scenario content, a symbolic link) are
   removed first. A run directory of a scenario that is not among those to run is
   refused: the reports must cover exactly the runs of this manifest.
@@ -28,11 +29,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from reports.record import RunRecord, incomplete_files, iter_run_dirs, load_run
+from reports.record import RunRecord, iter_run_dirs, load_run
 from reports.record.run import (
-    SERIES,
     STAGING_PREFIX,
-    TRACE,
     TRASH_PREFIX,
     discard_staging,
     remove_path,
@@ -180,8 +179,9 @@ def finished_record(job: RunJob) -> tuple[RunRecord | None, str]:
     """(the job's existing record if ``--resume`` may keep it, else None; why): kept
     only when it finished with a verdict, for the same scenario content, with the same
     hwyeval version and sources and the same plug-in controller source
-    (:mod:`suite.run.code_identity`), and every file run.json lists is there with its
-    checksum."""
+    (:mod:`suite.run.code_identity`), and :func:`reports.record.load_run` reads it: every
+    file run.json lists is there with its checksum (a run written before run.json
+    listed them: its parquet files read whole)."""
     run_dir = job.run_dir
     if run_dir.is_symlink():
         return None, "a symbolic link, not a run directory"
@@ -190,21 +190,20 @@ def finished_record(job: RunJob) -> tuple[RunRecord | None, str]:
     try:
         record = load_run(run_dir, trace=False, neighbours=False, arrays=False, series=False)
     except Exception as exc:  # noqa: BLE001 - any unreadable record is run again
-        return None, f"unreadable ({type(exc).__name__})"
+        return None, f"unreadable ({type(exc).__name__}: {_without_dir(exc, run_dir)})"
     problem = _stale(record, job)
     if problem:
         return None, problem
-    if record.outcome.steps > 0 and not ((run_dir / TRACE).is_file()
-                                         and (run_dir / SERIES).is_file()):
-        return None, f"incomplete ({TRACE} or {SERIES} missing)"
-    damaged = incomplete_files(run_dir, record.files, contents=True)
-    if damaged:
-        return None, "incomplete (" + "; ".join(damaged) + ")"
     return record, (f"kept: {record.status}, same scenario content, hwyeval sources "
                     f"{job.options.code_sha256[:10]}"
                     + (f", controller source {job.options.controller_sha256[:10]}"
                        if job.options.controller_sha256 else "")
                     + ", files complete")
+
+
+def _without_dir(exc: Exception, run_dir: Path) -> str:
+    """The error's text with the run directory's path left out (the line names the run)."""
+    return str(exc).replace(f"{run_dir}/", "").replace(f"{run_dir}: ", "")
 
 
 def _stale(record: RunRecord, job: RunJob) -> str:

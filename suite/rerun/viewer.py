@@ -23,10 +23,12 @@ import subprocess
 import sys
 from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from reports.record import RRD, RUN_JSON, RecordError, iter_run_dirs
-from reports.record.meta import END_OK
-from reports.record.run import read_run_json
+from reports.record import RRD, RUN_JSON, iter_run_dirs
+
+if TYPE_CHECKING:  # the reports' reader (pandas) is imported when runs are listed
+    from reports.tables import RunEntry
 
 VIEWER_HINT = "rerun is the viewer of rerun-sdk 0.41: pip install 'rerun-sdk==0.41.*'"
 
@@ -66,20 +68,28 @@ def web_url(port: int, bind: str) -> str:
 
 
 def run_status(run_dir: Path) -> str:
-    """pass | fail | error | timeout of a run directory from its run.json (an unreadable
-    one, or a run never judged, is 'error')."""
-    try:
-        _, outcome, verdict = read_run_json(run_dir)
-    except RecordError:
-        return "error"
-    if outcome.end != END_OK:
-        return outcome.end
-    return verdict.status if verdict is not None else "error"
+    """pass | fail | error | timeout of a run directory as the reports read it
+    (:func:`reports.tables.read_entry`: an unreadable one, or a run never judged, is
+    'error')."""
+    from reports.tables import read_entry
+
+    return read_entry(Path(run_dir)).status
+
+
+def failed_entries(out_dir: Path) -> list[RunEntry]:
+    """The runs under a catalog output directory whose status is not 'pass', read as
+    the reports and ``compare`` read them (:func:`reports.tables.collect_runs`): a run
+    directory that cannot be read (run.json malformed, a file missing, changed or
+    corrupt) is among them, ``RunEntry.unreadable`` saying why."""
+    from reports.tables import collect_runs
+
+    return [entry for entry in collect_runs(out_dir) if entry.status != "pass"]
 
 
 def failed_runs(out_dir: Path) -> list[Path]:
-    """Run directories under a catalog output directory whose status is not 'pass'."""
-    return [run_dir for run_dir in iter_run_dirs(out_dir) if run_status(run_dir) != "pass"]
+    """Run directories under a catalog output directory whose status is not 'pass'
+    (:func:`failed_entries`)."""
+    return [entry.run_dir for entry in failed_entries(out_dir)]
 
 
 def _rrd_for_run(run_dir: Path) -> Path | None:
