@@ -48,6 +48,49 @@ def test_a_held_lock_is_refused_and_released_with_its_holder(tmp_path: Path) -> 
     assert not out.exists()  # the lock lives beside the output, never in it
 
 
+@pytest.mark.parametrize("other", ["night/sub", "night/a/b", ".", "night_sibling"])
+def test_a_directory_inside_or_around_one_being_written_is_refused(tmp_path: Path,
+                                                                   other: str) -> None:
+    """X being written: X/sub, X/a/b and X's parent are refused (an --overwrite of one
+    would empty the other's files); a sibling is not. Then the other way round."""
+    out = tmp_path / "night"
+    out.mkdir()
+    (out / "a").mkdir()
+    target = (tmp_path / other).resolve()
+    nested = other != "night_sibling"
+    holder = _Holder(out)
+    try:
+        if nested:
+            with pytest.raises(OutDirBusy):
+                with out_dir_lock(target):
+                    pass
+        else:
+            with out_dir_lock(target):
+                pass
+    finally:
+        holder.stop()
+    with out_dir_lock(target):  # released with its holder
+        pass
+    holder = _Holder(target)  # the other way round
+    try:
+        if nested:
+            with pytest.raises(OutDirBusy):
+                with out_dir_lock(out):
+                    pass
+        else:
+            with out_dir_lock(out):
+                pass
+    finally:
+        holder.stop()
+
+
+def test_one_process_may_write_inside_a_directory_it_holds(tmp_path: Path) -> None:
+    out = tmp_path / "night"
+    out.mkdir()
+    with out_dir_lock(out), out_dir_lock(out / "runs"), out_dir_lock(out):
+        pass
+
+
 @pytest.mark.sumo
 def test_a_second_run_into_the_same_out_exits_2_and_writes_nothing(tmp_path: Path) -> None:
     catalog = tmp_path / "cat.toml"

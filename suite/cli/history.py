@@ -30,6 +30,7 @@ from suite.cli.common import (
     plain_help,
     positive_int,
     positive_seconds,
+    writing_to,
 )
 
 DEFAULT_WAIT_S = 60.0
@@ -165,7 +166,8 @@ def show_trends(db: Path, args: argparse.Namespace, text: Output) -> None:
     except HistoryError as exc:
         raise UsageError(str(exc)) from exc
     if args.out:
-        page = write_page(trends, Path(args.out))
+        with writing_to(Path(args.out)):  # one writer per directory (suite.exec.out_lock)
+            page = write_page(trends, Path(args.out))
         if not args.json:
             text.line(f"page: {page} ({len(trends.nights)} nights, {len(trends.failing)} "
                       f"failing now, {len(trends.known_failures)} known failures, "

@@ -17,17 +17,31 @@ directory itself. The kernel drops the lock with the process, so a killed run ne
 leaves a stale one; the file itself stays (removing it would race with a new holder).
 A process may take the lock of a directory it already holds again (``paper --run``
 runs ``run`` inside its own lock): the lock is re-entrant within a process.
+
+**Nested directories.** A command writing ``X`` and another writing ``X/sub`` (or
+``X``'s parent) mix their files as surely as two writers of one directory (an
+``--overwrite`` of ``X`` empties ``X/sub`` under the other's feet). Each holder
+therefore also takes, in a per-user registry in the temporary folder
+(:func:`registry_lock`, one small file per real path, named by its SHA-256), an
+exclusive lock for its own directory and a shared lock for every ancestor of it: a
+writer of an ancestor (exclusive on its entry) then finds a shared holder, and a writer
+of a descendant (shared on this directory's entry) finds the exclusive one; both are
+refused like a second writer of the same directory. Ancestors this process holds itself
+are skipped (re-entrant). The registry lives outside the tree, so nothing is written
+beside ``/`` or ``$HOME``; the kernel drops its locks with the process too.
 """
 
 from __future__ import annotations
 
 import fcntl
+import hashlib
 import os
+import tempfile
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
-__all__ = ["OutDirBusy", "lock_path", "out_dir_lock", "real_out"]
+__all__ = ["OutDirBusy", "lock_path", "out_dir_lock", "real_out", "registry_lock"]
 
 # Real paths of the directories this process holds, with how many holders nest there.
 _HELD: dict[Path, int] = {}
@@ -47,6 +61,51 @@ def lock_path(out: Path) -> Path:
     """``.<name>.lock`` beside the real directory of ``out``."""
     real = real_out(out)
     return real.parent / f".{real.name}.lock"
+
+
+def registry_lock(real: Path) -> Path:
+    """The registry file of the real directory ``real`` (module doc, "Nested
+    directories"): ``<tmp>/hwyeval-locks-<uid>/<sha256 of the path>.lock``."""
+    folder = Path(tempfile.gettempdir()) / f"hwyeval-locks-{os.getuid()}"
+    folder.mkdir(mode=0o700, exist_ok=True)
+    return folder / f"{hashlib.sha256(str(real).encode()).hexdigest()[:32]}.lock"
+
+
+@contextmanager
+def _registry_hold(fd_path: Path, mode: int, label: Path) -> Iterator[None]:
+    """Hold ``mode`` (LOCK_EX or LOCK_SH) on the registry file ``fd_path``; OutDirBusy
+    naming ``label``'s writer when it conflicts."""
+    fd = os.open(fd_path, os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        try:
+            fcntl.flock(fd, mode | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise OutDirBusy(label) from None
+        try:
+            yield
+        finally:
+            fcntl.flock(fd, fcntl.LOCK_UN)
+    finally:
+        os.close(fd)
+
+
+def _nested_holds(stack: ExitStack, out: Path, real: Path) -> None:
+    """The registry locks of ``real`` (exclusive) and of its ancestors (shared, but those
+    this process holds itself): OutDirBusy naming the directory when another command
+    writes an ancestor or a descendant of it."""
+    try:
+        stack.enter_context(_registry_hold(registry_lock(real), fcntl.LOCK_EX, real))
+        for parent in real.parents:
+            if parent not in _HELD:
+                stack.enter_context(_registry_hold(registry_lock(parent), fcntl.LOCK_SH,
+                                                   parent))
+    except OutDirBusy as busy:
+        other = Path(str(busy))
+        where = ("a directory inside it" if other == real
+                 else f"the directory {other} that contains it")
+        raise OutDirBusy(f"{_shown(out, real)}: another hwyeval command is writing to "
+                         f"{where}; wait for it to end, or choose another output "
+                         "directory") from None
 
 
 def _shown(out: Path, real: Path) -> str:
@@ -77,13 +136,17 @@ def out_dir_lock(out: Path) -> Iterator[Path]:
             raise OutDirBusy(f"{_shown(out, real)}: another hwyeval command (pid {holder}) "
                              f"is writing to this directory (lock {path}); wait for it to "
                              "end, or choose another output directory") from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        _HELD[real] = 1
         try:
-            yield path
+            with ExitStack() as nested:
+                _nested_holds(nested, out, real)
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+                _HELD[real] = 1
+                try:
+                    yield path
+                finally:
+                    del _HELD[real]
         finally:
-            del _HELD[real]
             fcntl.flock(fd, fcntl.LOCK_UN)
     finally:
         os.close(fd)
