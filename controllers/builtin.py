@@ -17,6 +17,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from controllers.baselines.lane_keep import LaneKeepParams, make_lane_keep
+from controllers.baselines.r157_reference import R157ReferenceParams, make_r157_reference
 from controllers.baselines.recorded_driver import RecordedDriverModel, make_recorded_driver
 from controllers.baselines.sumo_driver import make_sumo_driver
 from controllers.protocol import Controller, SumoDriverModel
@@ -30,6 +31,7 @@ ControllerFactory = Callable[[Mapping[str, Any]],
 def _factories() -> dict[str, ControllerFactory]:
     table: dict[str, ControllerFactory] = {
         "lane_keep": make_lane_keep,
+        "r157_reference": make_r157_reference,
         "recorded": make_recorded_driver,
         "sumo": make_sumo_driver,
         "two_loop": make_two_loop,
@@ -48,4 +50,5 @@ FACTORIES: Mapping[str, ControllerFactory] = _factories()
 # name -> the parameter dataclass its options build (``sumo``, ``recorded`` have none).
 PARAMETERS: Mapping[str, type] = {
     "lane_keep": LaneKeepParams, "two_loop": TwoLoopParams, "ipopt_nmpc": IpoptNmpcParams,
+    "r157_reference": R157ReferenceParams,
 }

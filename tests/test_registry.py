@@ -53,7 +53,7 @@ def test_unknown_controller_names_the_key() -> None:
     assert info.value.key == "controller.name"
 
 
-@pytest.mark.parametrize("name", ["lane_keep", "two_loop", "ipopt_nmpc"])
+@pytest.mark.parametrize("name", ["lane_keep", "two_loop", "ipopt_nmpc", "r157_reference"])
 def test_every_builtin_controller_satisfies_the_protocol(name: str) -> None:
     controller = registry.make(name, {})
     assert isinstance(controller, Controller)

@@ -31,7 +31,7 @@ from suite.run.options import RunOptions
 
 ROOT = Path(__file__).resolve().parents[1]
 
-CONTROLLERS = ["two_loop", "lane_keep", "sumo", "ipopt_nmpc", "pd_follow"]
+CONTROLLERS = ["two_loop", "lane_keep", "sumo", "ipopt_nmpc", "pd_follow", "r157_reference"]
 SCENARIO = """
 [[scenario]]
 name = "log_{name}"
