@@ -25,7 +25,7 @@ from reports.compare import compare_runs
 from reports.history import add_night, read_night, run_sql
 from reports.record import RUN_JSON, SERIES, TRACE, DamagedRun, RecordError, load_run
 from suite.cli import main as hwyeval_main
-from suite.rerun.viewer import failed_entries, failed_runs
+from suite.rerun.viewer import failed_entries, failed_runs, unreadable_reason
 from tests.reliability_support import scenario_toml, write_catalog
 
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]  # one real catalog run, ~6 s
@@ -129,6 +129,10 @@ def test_view_failed_lists_the_unreadable_run(night: tuple[Path, Path], tmp_path
     assert entry.run_dir == bad / VICTIM and entry.status == "error"
     assert DAMAGE[case][1] in entry.unreadable
     assert failed_runs(bad) == [bad / VICTIM]
+    # viewing the damaged run alone says why it is unreadable; a clean one says nothing
+    assert unreadable_reason(clean / VICTIM) is None
+    why = unreadable_reason(bad / VICTIM)
+    assert why is not None and DAMAGE[case][1] in why
 
 
 @pytest.mark.parametrize("case", sorted(DAMAGE))

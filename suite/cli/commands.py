@@ -140,12 +140,14 @@ def _compare_base(args: argparse.Namespace) -> str | None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    from suite.rerun.viewer import failed_entries, open_logs, serve_web
+    from suite.rerun.viewer import failed_entries, open_logs, serve_web, unreadable_reason
 
     target = Path(args.dir)
     if not target.exists():
         raise UsageError(f"{target}: no such run directory, output directory or .rrd file")
     items = [target]
+    if target.is_dir() and (why := unreadable_reason(target)):
+        err(f"{target}: unreadable run directory (status error): {why}")
     if args.failed:
         failed = failed_entries(target)
         if not failed:

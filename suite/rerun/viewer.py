@@ -76,6 +76,17 @@ def run_status(run_dir: Path) -> str:
     return read_entry(Path(run_dir)).status
 
 
+def unreadable_reason(run_dir: Path) -> str | None:
+    """Why the run directory ``run_dir`` cannot be read as the reports read it (run.json
+    malformed, a file it lists missing, changed or corrupt), or None: a single run
+    opened with ``view`` says so before its log is shown."""
+    from reports.tables import read_entry
+
+    if not (Path(run_dir) / "run.json").is_file():
+        return None  # an output directory or an .rrd file: nothing to check here
+    return read_entry(Path(run_dir)).unreadable or None
+
+
 def failed_entries(out_dir: Path) -> list[RunEntry]:
     """The runs under a catalog output directory whose status is not 'pass', read as
     the reports and ``compare`` read them (:func:`reports.tables.collect_runs`): a run
