@@ -5,7 +5,9 @@ storyboards and a ``catalog.toml`` that ``hwyeval run`` reads (docs/openscenario
 
 One line per file, the errors on stderr. Exit codes: 0 every file imported; 2 a file
 could not be (named with its element and line: unsupported, a violated constraint, a
-refused XML construct). The files that did import are in DIR/catalog.toml all the same.
+refused XML construct), or an --out the import may not write
+(:mod:`suite.importers.common.out_guard`, refused before anything is written). The files
+that did import are in DIR/catalog.toml all the same.
 """
 
 from __future__ import annotations
@@ -34,7 +36,12 @@ def add_openscenario_parser(fmt: argparse._SubParsersAction[argparse.ArgumentPar
                                             "catalog.toml")
     c.add_argument("files", nargs="+", metavar="FILE.xosc")
     c.add_argument("--out", required=True, help="the folder to write (created; files of "
-                   "earlier imports stay)")
+                   "earlier imports stay; one holding files the import did not write, or "
+                   "an edited catalog.toml, needs --overwrite)")
+    c.add_argument("--overwrite", action="store_true",
+                   help="import into an --out that holds files the import did not write "
+                   "(they stay untouched) and replace its catalog.toml even if it was "
+                   "edited or hand-written (docs/openscenario.md)")
     c.add_argument("--ego", default=None, metavar="NAME",
                    help="the entity the controller drives (default: the one named Ego/Hero)")
     c.add_argument("--ignore-constraints", action="store_true",
@@ -49,14 +56,22 @@ def add_openscenario_parser(fmt: argparse._SubParsersAction[argparse.ArgumentPar
 
 
 def cmd_import_openscenario(args: argparse.Namespace) -> int:
-    """Parse the options and import under DIR's lock."""
-    from suite.importers.openscenario import ImportOptions, import_files
+    """Parse the options and import under DIR's lock (suite.exec.out_lock): another
+    command writing DIR is refused (exit 2) before anything is read or written."""
+    from suite.importers.openscenario import ImportOptions, OutputRefused, import_files
 
     out = Output()
-    with writing_to(Path(args.out)):
-        outcome = import_files([Path(f) for f in args.files], Path(args.out), ImportOptions(
-            ego=args.ego, ignore_constraints=args.ignore_constraints,
-            duration_s=args.duration_s, variants=args.variants))
+    try:
+        with writing_to(Path(args.out)):
+            outcome = import_files([Path(f) for f in args.files], Path(args.out),
+                                   ImportOptions(ego=args.ego,
+                                                 ignore_constraints=args.ignore_constraints,
+                                                 duration_s=args.duration_s,
+                                                 variants=args.variants),
+                                   overwrite=args.overwrite)
+    except OutputRefused as exc:
+        err(str(exc))
+        return EXIT_INPUT
     for r in outcome.results:
         sets = f", {r.sets} parameter sets ({r.invalid_sets} violate constraints)" \
             if r.sets else ""

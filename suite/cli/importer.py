@@ -5,7 +5,7 @@ scenarios -> a SUMO net, a tracks file and a ``catalog.toml`` scenario per file
 One line per file (what was built, lanes/edges, tracks kept/dropped, corrections), the
 warnings on stderr. Exit codes: 0 every file imported; 2 bad input (a file that cannot
 be imported, named with its element; commonroad-io missing; an --out the import may not
-write: :mod:`suite.importers.commonroad.out_guard`, refused before anything is written).
+write: :mod:`suite.importers.common.out_guard`, refused before anything is written).
 The files that did import keep their outputs and are listed in DIR/catalog.toml even
 when another file failed.
 """

@@ -2,10 +2,10 @@
 ``.hwyeval-import-*`` inside the output folder (the same file system, so moving a file
 out of it is one atomic rename). A file that fails leaves nothing (the folder is
 removed); one that imports has its outputs moved into the output folder, the scenario
-file last (``catalog.toml`` lists the scenario files), replacing those of an earlier
+files last (``catalog.toml`` lists the scenario files), replacing those of an earlier
 import of the same stem only then. A killed import may leave a staging folder or a
 ``*.partial`` file behind: the next import removes them
-(:func:`suite.importers.commonroad.out_guard.discard_leftovers`)."""
+(:func:`suite.importers.common.out_guard.discard_leftovers`)."""
 
 from __future__ import annotations
 
@@ -33,8 +33,16 @@ def staged(out_dir: Path) -> Iterator[Path]:
         shutil.rmtree(stage, ignore_errors=True)
 
 
-def commit(stage: Path, out_dir: Path, names: Sequence[str]) -> None:
+def _every_file(stage: Path, last: str) -> list[str]:
+    """The files of ``stage`` by name, those ending with ``last`` at the end."""
+    names = sorted(p.name for p in stage.iterdir() if p.is_file())
+    return sorted(names, key=lambda n: n.endswith(last))
+
+
+def commit(stage: Path, out_dir: Path, names: Sequence[str] | None = None,
+           last: str = ".scenario.json") -> None:
     """Move the files ``names`` from ``stage`` into ``out_dir``, in that order, each in
-    one atomic rename."""
-    for name in names:
+    one atomic rename (``names`` None: every file of ``stage``, those ending with
+    ``last``, the scenario files, at the end)."""
+    for name in _every_file(stage, last) if names is None else names:
         os.replace(stage / name, out_dir / name)

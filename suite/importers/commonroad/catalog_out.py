@@ -22,27 +22,28 @@ hwyeval's own :class:`~suite.road.network.RoadNetwork`), one scenario per file, 
 * **Stalled.** A static obstacle on a route lane becomes ``stalled`` with its box
   (pos = s(centre) + length/2, as the ego); elsewhere it is dropped with a note.
 * **Files.** Each imported file leaves ``<stem>.scenario.json`` (its scenario table and
-  notes); ``catalog.toml`` is rebuilt from every such file in DIR, so a file that fails
-  later never removes what an earlier import wrote, and ``catalog.toml`` lists every
-  file imported into DIR so far. Its first line marks it generated, with the hash of
-  the rest (:mod:`~suite.importers.commonroad.catalog_mark`): an edited copy is not
-  replaced silently (:mod:`~suite.importers.commonroad.out_guard`).
+  notes); ``catalog.toml`` is rebuilt from every such file in DIR, marked generated
+  (:mod:`suite.importers.common.catalog`, shared with ``import openscenario``:
+  :data:`OUTPUTS` says what this import writes).
 """
 
 from __future__ import annotations
 
-import json
 import math
-import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Any
 
 from controllers.plant.vehicle_model import VehicleParams
 from suite.catalog.specs import MAX_EGO_HEADING_RAD, MAX_EGO_LATERAL_OFFSET_M
-from suite.catalog.toml_write import dumps_catalog
-from suite.importers.commonroad.catalog_mark import marked
+from suite.importers.common import catalog
+from suite.importers.common.catalog import (
+    DEFAULT_CONTROLLER,
+    FRAGMENT_SUFFIX,
+    STEP_S,
+    write_fragment,
+)
+from suite.importers.common.outputs import Outputs
 from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import project
 from suite.importers.commonroad.net_build import BuiltNet
@@ -50,15 +51,22 @@ from suite.importers.commonroad.records import EgoStart, ObstacleRecord
 from suite.road.lane_pose import LanePose, pose_in_lane
 from suite.road.network import RoadNetwork
 
-__all__ = ["CATALOG_NAME", "FRAGMENT_SUFFIX", "LATERAL_WARN_M", "RoutePoint", "choose_route",
+__all__ = ["DEFAULT_CONTROLLER", "FRAGMENT_SUFFIX", "LATERAL_WARN_M", "OUTPUTS",
+           "STEP_S", "RoutePoint", "choose_route",
            "ego_offset_note", "ego_table",
-           "locate_on_route", "scenario_name", "stalled_tables", "write_catalog",
+           "locate_on_route", "scenario_name", "stalled_tables",
            "write_fragment"]
 
-CATALOG_NAME = "catalog.toml"
-FRAGMENT_SUFFIX = ".scenario.json"
-STEP_S = 0.02
-DEFAULT_CONTROLLER = "two_loop"
+OUTPUTS = Outputs(
+    command="commonroad", input_suffix=".xml",
+    per_input=(".net.xml", ".tracks.parquet", FRAGMENT_SUFFIX), doc="docs/recorded.md",
+    header=("Recorded scenarios imported from CommonRoad by `hwyeval import commonroad`",
+            "(docs/recorded.md). Rebuilt from the *.scenario.json files of this folder.",
+            "Positions: ego.pos_m / stalled pos_m are front bumpers along the route;",
+            "lane 0 = rightmost lane of the edge at that position."),
+    fallback_name="recording")
+"""What the import writes (:mod:`suite.importers.common`): per file ``<stem>.net.xml``,
+``<stem>.tracks.parquet``, ``<stem>.scenario.json``; and ``catalog.toml``."""
 MAX_PATHS = 20000
 LATERAL_WARN_M = 0.5
 """An ego centre farther than this [m] from its lane's centre line is a warning: the run
@@ -89,8 +97,7 @@ class RoutePoint:
 
 def scenario_name(stem: str) -> str:
     """A catalog name ``[a-z0-9_]+`` from a file stem."""
-    name = re.sub(r"[^a-z0-9_]+", "_", stem.lower()).strip("_")
-    return name or "recording"
+    return catalog.scenario_name(stem, OUTPUTS.fallback_name)
 
 
 def _forward_paths(net: BuiltNet, start: str) -> list[tuple[str, ...]]:
@@ -227,63 +234,3 @@ def stalled_tables(network: RoadNetwork, route: Sequence[str],
     if tables:
         notes.append(f"{len(tables)} static obstacles became stalled cars")
     return tables, notes
-
-
-def write_fragment(out_dir: Path, stem: str, name: str, table: Mapping[str, Any],
-                   notes: Sequence[str], source: str) -> Path:
-    """``<stem>.scenario.json``, atomically."""
-    path = out_dir / f"{stem}{FRAGMENT_SUFFIX}"
-    partial = path.with_name(path.name + ".partial")
-    partial.write_text(json.dumps({"name": name, "source": source, "notes": list(notes),
-                                   "scenario": dict(table)}, indent=1) + "\n",
-                       encoding="utf-8")
-    partial.replace(path)
-    return path
-
-
-def _fragments(out_dir: Path) -> list[dict[str, Any]]:
-    out = []
-    for p in sorted(out_dir.glob(f"*{FRAGMENT_SUFFIX}")):
-        try:
-            data = json.loads(p.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue
-        if isinstance(data, dict) and isinstance(data.get("scenario"), dict):
-            out.append(data)
-    return out
-
-
-def write_catalog(out_dir: Path, failed: Sequence[str] = ()) -> Path:
-    """``catalog.toml`` from every scenario file in ``out_dir`` (atomically), under its
-    generated-by line (:func:`~suite.importers.commonroad.catalog_mark.marked`); names
-    stay unique (a clash gets ``_2``, ``_3``...)."""
-    frags = _fragments(out_dir)
-    header = ["Recorded scenarios imported from CommonRoad by `hwyeval import commonroad`",
-              "(docs/recorded.md). Rebuilt from the *.scenario.json files of this folder.",
-              "Positions: ego.pos_m / stalled pos_m are front bumpers along the route;",
-              "lane 0 = rightmost lane of the edge at that position."]
-    scenarios = []
-    used: set[str] = set()
-    for frag in frags:
-        table = dict(frag["scenario"])
-        name = str(table.get("name", "recording"))
-        k = 2
-        while name in used:
-            name = f"{table.get('name')}_{k}"
-            k += 1
-        used.add(name)
-        table["name"] = name
-        scenarios.append(table)
-        header += ["", f"{name} <- {frag.get('source', '?')}:"]
-        header += [f"  {note}" for note in frag.get("notes", [])]
-    if failed:
-        header += ["", "Not imported (see the command's errors): " + ", ".join(failed)]
-    text = marked(dumps_catalog("\n".join(header),
-                                {"controller": DEFAULT_CONTROLLER, "step_s": STEP_S, "seed": 0},
-                                scenarios))
-    path = out_dir / CATALOG_NAME
-    partial = path.with_name(path.name + ".partial")
-    partial.write_text(text, encoding="utf-8")
-    partial.replace(path)
-    return path
-

@@ -1,8 +1,11 @@
 """The importer's errors: :class:`ImportFailure` (which file, which element: lanelet /
 obstacle id, XML tag, and what was wrong) and :class:`OutputRefused` (the command as a
-whole: the output folder or the inputs' names; nothing was written)."""
+whole: the output folder or the inputs' names; nothing was written), shared by every
+importer (:mod:`suite.importers.common.errors`)."""
 
 from __future__ import annotations
+
+from suite.importers.common.errors import OutputRefused
 
 __all__ = ["ImportFailure", "OutputRefused"]
 
@@ -17,9 +20,3 @@ class ImportFailure(ValueError):
         self.element = element
         self.reason = reason
         super().__init__(f"{path}: {element}: {reason}")
-
-
-class OutputRefused(ValueError):
-    """The import would overwrite what it did not write, or two inputs would write the
-    same outputs (:mod:`~suite.importers.commonroad.out_guard`): refused before any file
-    is written (the CLI exits 2 with this message)."""

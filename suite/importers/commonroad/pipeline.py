@@ -1,10 +1,10 @@
 """One CommonRoad file -> ``<stem>.net.xml``, ``<stem>.tracks.parquet`` and its catalog
 scenario (``<stem>.scenario.json``, gathered into ``catalog.toml``); several files in
 turn. Before anything is written the inputs and the output folder are checked
-(:mod:`~suite.importers.commonroad.out_guard`: no two inputs of one stem, nothing in the
+(:mod:`suite.importers.common.out_guard`: no two inputs of one stem, nothing in the
 folder the import did not write, an unedited generated catalog, unless ``overwrite``).
 A file's outputs are written into a staging folder and moved into the output folder
-only once all of them are (:mod:`~suite.importers.commonroad.staging`): a file that
+only once all of them are (:mod:`suite.importers.common.staging`): a file that
 fails leaves nothing of its own, keeps what an earlier import of its stem wrote, and
 does not touch what the other files wrote."""
 
@@ -19,7 +19,8 @@ from pathlib import Path
 from controllers.plant.vehicle_model import VehicleParams
 from suite.catalog.loader import MAX_STEPS
 from suite.catalog.tracks import Track, TrackSet, write_tracks
-from suite.importers.commonroad import catalog_out, out_guard, recorded_ego, staging
+from suite.importers.common import batch, out_guard, staging
+from suite.importers.commonroad import catalog_out, recorded_ego
 from suite.importers.commonroad.checks import (
     EgoBox,
     LaneShape,
@@ -168,11 +169,12 @@ def import_file(source: Path, out_dir: Path, params: ImportParams) -> FileResult
     here: :func:`import_files` does)."""
     t0 = time.perf_counter()
     rec, recorded = recorded_ego.resolve(read_file(source), params.ego_obstacle)
-    stem = out_guard.output_stem(source)
+    stem = out_guard.output_stem(source, catalog_out.OUTPUTS)
     with staging.staged(out_dir) as stage:
         with recorded_ego.blamed(recorded):
             result = _import(source, stage, params, rec, recorded, t0)
-        staging.commit(stage, out_dir, out_guard.output_names(stem))
+        staging.commit(stage, out_dir,
+                       out_guard.output_names(stem, catalog_out.OUTPUTS.per_input))
     return replace(result, net_path=out_dir / result.net_path.name,
                    tracks_path=out_dir / result.tracks_path.name)
 
@@ -182,7 +184,7 @@ def _import(source: Path, out_dir: Path, params: ImportParams, rec: RecordedFile
     """:func:`import_file` of the read file ``rec`` (its ego start and goal already set
     for its recorded ego, if it has one), its outputs written into ``out_dir`` (the
     staging folder)."""
-    stem = out_guard.output_stem(source)
+    stem = out_guard.output_stem(source, catalog_out.OUTPUTS)
     road = build_road(rec)
     speeds = lane_speeds(road, rec, params.net.speed_limit_mps)
     plan = plan_net(road, params.net, rec.path, speeds)
@@ -242,24 +244,20 @@ def _import(source: Path, out_dir: Path, params: ImportParams, rec: RecordedFile
 def import_files(sources: Sequence[Path], out_dir: Path,
                  params: ImportParams | None = None, *,
                  overwrite: bool = False) -> ImportOutcome:
-    """Check the inputs and ``out_dir`` (:class:`~suite.importers.commonroad.errors.
+    """Check the inputs and ``out_dir`` (:class:`~suite.importers.common.errors.
     OutputRefused` before anything is written; ``overwrite``: write beside files the
     import did not write and replace an edited ``catalog.toml``), then import every file
     in turn; a failing file is recorded and the next one goes on. When a file imported,
     ``catalog.toml`` is rebuilt at the end from every scenario of ``out_dir`` (when none
     did, nothing in ``out_dir`` changes)."""
     params = ImportParams() if params is None else params
-    sources = out_guard.check_inputs(sources)
-    out_guard.check_out_dir(out_dir, [out_guard.output_stem(s) for s in sources], overwrite)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    out_guard.discard_leftovers(out_dir)
-    results: list[FileResult] = []
-    failures: list[ImportFailure] = []
-    for source in sources:
-        try:
-            results.append(import_file(source, out_dir, params))
-        except ImportFailure as exc:
-            failures.append(exc)
-    catalog = (catalog_out.write_catalog(out_dir, [Path(f.path).name for f in failures])
-               if results else None)
-    return ImportOutcome(tuple(results), tuple(failures), catalog)
+    outputs = catalog_out.OUTPUTS
+    sources = out_guard.check_inputs(sources, outputs)
+    names = [n for s in sources
+             for n in out_guard.output_names(out_guard.output_stem(s, outputs),
+                                             outputs.per_input)]
+    out_guard.check_out_dir(out_dir, names, outputs, overwrite)
+    done = batch.import_each(sources, out_dir, outputs,
+                             lambda source: import_file(source, out_dir, params),
+                             ImportFailure)
+    return ImportOutcome(done.results, done.failures, done.catalog)

@@ -7,10 +7,12 @@ references), :mod:`.road` (OpenDRIVE -> SUMO net and lane map), :mod:`.lane_band
 (lanes across a road), :mod:`.positions` and :mod:`.position_xml` (positions on the
 route), :mod:`.entities`, :mod:`.conditions_xml`, :mod:`.actions_xml`, :mod:`.story`
 (the storyboard), :mod:`.variation` (parameter distributions), :mod:`.catalog_out`
-(writing) and :mod:`.pipeline` (the whole import).
+(writing), :mod:`.plan` (what will be written, checked before anything is, with
+:mod:`suite.importers.common`) and :mod:`.pipeline` (the whole import).
 """
 
+from suite.importers.common.errors import OutputRefused
 from suite.importers.openscenario.errors import OscImportError
 from suite.importers.openscenario.pipeline import ImportOptions, ImportOutcome, import_files
 
-__all__ = ["ImportOptions", "ImportOutcome", "OscImportError", "import_files"]
+__all__ = ["ImportOptions", "ImportOutcome", "OscImportError", "OutputRefused", "import_files"]

@@ -8,7 +8,10 @@ scenario table (:mod:`.catalog_out`). A variation file (``ParameterValueDistribu
 imports its template with the declared values, counts its parameter sets (those that
 violate the template's constraints are counted apart) and writes them to
 ``<stem>.sets.json``; ``variants`` > 0 also imports that many of the valid sets (evenly
-spread) as scenarios of their own.
+spread) as scenarios of their own. Before anything is written the inputs and the
+output folder are checked (:mod:`.plan`, :mod:`suite.importers.common.out_guard`); a
+file's outputs are staged and moved into the folder once all of them are
+(:mod:`suite.importers.common.staging`), as ``import commonroad`` does.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from suite.catalog import storyboard as sb
+from suite.importers.common import batch, out_guard, staging
 from suite.importers.openscenario import catalog_out
 from suite.importers.openscenario.actions_xml import ActionReader
 from suite.importers.openscenario.catalogs import CatalogIndex, resolve_references
@@ -30,6 +34,7 @@ from suite.importers.openscenario.entities import read_entities
 from suite.importers.openscenario.errors import OscImportError, fail_at
 from suite.importers.openscenario.lane_bands import read_bands
 from suite.importers.openscenario.params import declare, resolve_tree
+from suite.importers.openscenario.plan import check_plan, road_file
 from suite.importers.openscenario.positions import Placer, nearest_lane
 from suite.importers.openscenario.road import LaneMap, build_road
 from suite.importers.openscenario.story import read_init, read_stories
@@ -144,14 +149,8 @@ def _duration(stop: sb.Trigger, options: ImportOptions, notes: list[str]) -> flo
 
 
 def _road(root: Any, source: Path, out_dir: Path) -> tuple[Path, LaneMap, Any]:
-    logic = root.find("RoadNetwork/LogicFile")
-    if logic is None or not logic.get("filepath"):
-        raise fail_at(root.find("RoadNetwork") if root.find("RoadNetwork") is not None
-                      else root, "a RoadNetwork LogicFile (OpenDRIVE) is required")
-    xodr = (source.parent / str(logic.get("filepath"))).resolve()
-    if not xodr.is_file():
-        raise fail_at(logic, f"no OpenDRIVE file {xodr}")
-    net_path = out_dir / f"{catalog_out.scenario_name(xodr.stem)}.net.xml"
+    xodr = road_file(root, source)
+    net_path = out_dir / f"{catalog_out.net_stem(xodr)}.net.xml"
     lane_map = build_road(xodr, net_path)
     catalog_out.write_atomic(net_path.with_suffix("").with_suffix(".lanes.json"),
                              json.dumps(lane_map.as_json(), indent=1) + "\n")
@@ -230,7 +229,7 @@ def _write(built: _Built, out_dir: Path, stem: str, source: Path,
     story_file = f"{stem}.story.json"
     catalog_out.write_atomic(out_dir / story_file, sb.story_to_json(built.story))
     table = {"name": name, **built.table, "storyboard": story_file}
-    catalog_out.write_fragment(out_dir, stem, table, [*built.notes, *extra_notes],
+    catalog_out.write_fragment(out_dir, stem, name, table, [*built.notes, *extra_notes],
                                source.name)
     return name
 
@@ -248,7 +247,7 @@ def _import_variation(source: Path, root: Any, out_dir: Path,
             valid.append(s)
         except OscImportError:
             invalid += 1
-    stem = source.name[:-5] if source.name.endswith(".xosc") else source.stem
+    stem = out_guard.output_stem(source, catalog_out.OUTPUTS)
     catalog_out.write_atomic(out_dir / f"{stem}.sets.json", json.dumps(
         {"template": template.name, "sets": len(sets), "violating_constraints": invalid,
          "valid": valid}, indent=0) + "\n")
@@ -272,29 +271,40 @@ def _import_variation(source: Path, root: Any, out_dir: Path,
 
 
 def import_file(source: Path, out_dir: Path, options: ImportOptions) -> FileResult:
-    """Import one file (a scenario or a variation file) into ``out_dir``."""
+    """Import one file (a scenario or a variation file) into ``out_dir``: its outputs
+    are written into a staging folder and moved into ``out_dir`` once all of them are
+    (:mod:`suite.importers.common.staging`; the folder is not checked here:
+    :func:`import_files` does)."""
+    with staging.staged(out_dir) as stage:
+        result = _import_file(source, stage, options)
+        staging.commit(stage, out_dir)
+    return result
+
+
+def _import_file(source: Path, out_dir: Path, options: ImportOptions) -> FileResult:
     t0 = time.perf_counter()
     root = read_xml(source).getroot()
     if root.find("ParameterValueDistribution") is not None:
         return _import_variation(source, root, out_dir, options)
-    stem = source.name[:-5] if source.name.endswith(".xosc") else source.stem
+    stem = out_guard.output_stem(source, catalog_out.OUTPUTS)
     built = build_scenario(source, out_dir, options)
     return FileResult(source, (_write(built, out_dir, stem, source),),
                       notes=tuple(built.notes), wall_s=time.perf_counter() - t0)
 
 
 def import_files(sources: Sequence[Path], out_dir: Path,
-                 options: ImportOptions | None = None) -> ImportOutcome:
-    """Import every file in turn (a failing one is recorded, the next goes on);
-    ``catalog.toml`` is rebuilt at the end."""
-    options = options or ImportOptions()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    results, failures = [], []
-    for source in sources:
-        try:
-            results.append(import_file(Path(source), out_dir, options))
-        except OscImportError as exc:
-            failures.append(exc)
-    catalog = (catalog_out.write_catalog(out_dir, [Path(f.path).name for f in failures])
-               if results or any(out_dir.glob(f"*{catalog_out.FRAGMENT_SUFFIX}")) else None)
-    return ImportOutcome(tuple(results), tuple(failures), catalog)
+                 options: ImportOptions | None = None, *,
+                 overwrite: bool = False) -> ImportOutcome:
+    """Check the inputs and ``out_dir`` (:func:`~suite.importers.openscenario.plan.
+    check_plan`: :class:`~suite.importers.common.errors.OutputRefused` before anything
+    is written; ``overwrite``: write beside files the import did not write and replace
+    an edited ``catalog.toml``), then import every file in turn (a failing one is
+    recorded, the next goes on). When a file imported, ``catalog.toml`` is rebuilt at
+    the end from every scenario of ``out_dir`` (when none did, nothing in ``out_dir``
+    changes)."""
+    opts = options or ImportOptions()
+    sources = check_plan([Path(s) for s in sources], out_dir, overwrite)
+    done = batch.import_each(sources, out_dir, catalog_out.OUTPUTS,
+                             lambda source: import_file(source, out_dir, opts),
+                             OscImportError)
+    return ImportOutcome(done.results, done.failures, done.catalog)
