@@ -45,6 +45,19 @@ pos_m = 78.0
 speed_mps = 20.7
 events = [ { t_s = 2.3, lane_change = 1 } ]
 
+# the same cut-in 55 m ahead (bumper gap when it starts moving sideways), 7.2 m/s slower
+[[scenario]]
+name = "cut_in_55m"
+net = "straight_2lane"
+duration_s = 10.0
+ego = { lane = 1, pos_m = 50.0, speed_mps = 27.9 }
+[[scenario.actors]]
+id = "cutter"
+lane = 0
+pos_m = 125.0
+speed_mps = 20.7
+events = [ { t_s = 2.3, lane_change = 1 } ]
+
 # a lead 9.5 m ahead at the ego's crawl (0.89 m/s set speed) stops at 2 s for 12 s
 [[scenario]]
 name = "crawl_stop"
@@ -184,3 +197,24 @@ def test_a_neighbour_jittering_beside_the_line_is_not_a_cut_in(runs: Path) -> No
     assert tr["target_speed_mps"].min() == pytest.approx(4.5)
     assert int(tr["n_obstacles"].max()) == 0
     assert set(tr["reason_code"]) == {"keep"}
+
+
+def test_a_distant_cut_in_is_braked_for_early_and_gently(runs: Path) -> None:
+    """A car cutting in 55 m ahead at 7.2 m/s less: braking starts within 0.6 s of the
+    car's first sideways motion, stays within comfort (3 m/s², no emergency) and keeps
+    at least 13 m; a steady 2 m/s² from the start would have kept ~40 m."""
+    run_dir = runs / "cut_in_55m"
+    tr = pd.read_parquet(run_dir / "trace.parquet")
+    nb = pd.read_parquet(run_dir / "neighbours.parquet")
+    car = nb[nb["id"] == "actor_cutter"].set_index("step")
+    y = car["y_m"].reindex(tr["step"]).to_numpy()
+    t = tr["t_s"].to_numpy()
+    moves = t[np.argmax(np.abs(y - y[0]) > 0.05)]
+    series = pd.read_parquet(run_dir / "series.parquet")
+    acc = series["long_acc_mps2"].to_numpy()
+    brakes = t[np.argmax(acc < -0.3)]
+    assert 0.0 <= brakes - moves <= 0.6
+    assert acc.min() >= -3.0 - 0.1
+    assert not tr["emergency"].to_numpy().astype(bool).any()
+    gap, _ = _gap_and_closing(run_dir, "actor_cutter")
+    assert np.nanmin(gap[t > moves]) >= 13.0
