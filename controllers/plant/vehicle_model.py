@@ -133,6 +133,14 @@ class VehicleParams:
             - self.cg_to_front_axle_m / self.cornering_stiffness_rear_npr
         )
 
+    def steady_state_steer_rad(self, speed_mps: float, curvature_1pm: float) -> float:
+        """delta = (L + K_us v²) kappa [rad]: the steering that holds a path of curvature
+        kappa [1/m] at speed v [m/s] (L/R_turn + K_us a_y with a_y = v² kappa). The
+        compiled conversion's feed-forward (``controllers/two_loop/preview.py``) writes
+        the same expression inline, for numba."""
+        return (self.wheelbase_m + self.understeer_gradient_rad_per_mps2 * speed_mps
+                * speed_mps) * curvature_1pm
+
     def as_array(self) -> np.ndarray:
         """Packed parameters for the compiled kernels: [m, I, a, b, C1, C2, R, v_min]."""
         return np.array(

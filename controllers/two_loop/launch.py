@@ -169,13 +169,13 @@ class LaunchSupervisor:
         self._last_torque = 0.0
         self._path: FrenetPath | None = None
         self._vp = VehicleParams().as_array()
-        self._k_us = 0.0
+        self._vehicle = VehicleParams()
 
     def reset(self, path: FrenetPath, vehicle: VehicleParams) -> None:
         """Start of a run: not engaged, ramp at rest."""
         self._path = path
         self._vp = vehicle.as_array()
-        self._k_us = vehicle.understeer_gradient_rad_per_mps2
+        self._vehicle = vehicle
         self.ramp = TargetSpeedRamp(self.ocp.target_accel_mps2, self.ocp.target_decel_mps2,
                                     self.ocp.target_jerk_mps3)
         self.active = False
@@ -259,9 +259,8 @@ class LaunchSupervisor:
             torque = min(torque, -m_r * p.hold_decel_mps2)  # hold the brakes
         meta, coef, _ = self._path.tables()
         g, kappa, _ = path_gamma(meta, coef, float(x0[0]))
-        wb = vp[2] + vp[3]
         e_psi = (g + h - float(state[2]) + math.pi) % (2.0 * math.pi) - math.pi
-        steer = (wb + self._k_us * speed_mps * speed_mps) * kappa + p.k_heading * e_psi
+        steer = self._vehicle.steady_state_steer_rad(speed_mps, kappa) + p.k_heading * e_psi
         steer *= min(speed_mps / p.steer_speed_mps, 1.0)
         return float(steer), float(torque)
 

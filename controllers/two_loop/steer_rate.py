@@ -17,7 +17,8 @@ before it was declared failed), afterwards from the last command handed out:
 the steady-state steering rate at which the lateral acceleration a_y = v² delta /
 (L + K_us v²) changes at the lateral jerk j = ``lat_jerk_mps3`` (L the wheelbase, K_us
 the understeer gradient, v_min = ``rate_speed_floor_mps`` so that the bound stays finite
-at a standstill; :class:`controllers.two_loop.fallback.FallbackParams`).
+at a standstill; :class:`controllers.two_loop.fallback.FallbackParams`): both are
+:meth:`VehicleParams.steady_state_steer_rad`, of the curvature j / v² and r / v.
 """
 
 from __future__ import annotations
@@ -34,26 +35,24 @@ class SteerRateLimiter:
         self.lat_jerk_mps3 = lat_jerk_mps3
         self.blend_s = blend_s
         self.speed_floor_mps = speed_floor_mps
-        self._wheelbase_m = 2.8
-        self._understeer = 0.0
+        self._vehicle = VehicleParams()
         self._last: float | None = None
         self._until_s = -math.inf
 
     def reset(self, vehicle: VehicleParams) -> None:
-        self._wheelbase_m = vehicle.wheelbase_m
-        self._understeer = vehicle.understeer_gradient_rad_per_mps2
+        self._vehicle = vehicle
         self._last = None
         self._until_s = -math.inf
 
     def rate_radps(self, speed_mps: float) -> float:
         """The bound rate(v) [rad/s] (module docstring)."""
         v = max(abs(speed_mps), self.speed_floor_mps)
-        return self.lat_jerk_mps3 * (self._wheelbase_m + self._understeer * v * v) / (v * v)
+        return self._vehicle.steady_state_steer_rad(v, self.lat_jerk_mps3 / (v * v))
 
     def steady_state_rad(self, speed_mps: float, yaw_rate_radps: float) -> float:
         """delta_ss [rad] that holds the yaw rate r at speed v (module docstring)."""
         v = max(abs(speed_mps), self.speed_floor_mps)
-        return yaw_rate_radps * (self._wheelbase_m + self._understeer * v * v) / v
+        return self._vehicle.steady_state_steer_rad(v, yaw_rate_radps / v)
 
     def limit(self, steer_rad: float, t_s: float, dt_s: float, speed_mps: float,
               yaw_rate_radps: float, bounded: bool) -> tuple[float, bool]:
