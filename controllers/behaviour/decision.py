@@ -164,8 +164,9 @@ class LaneBehaviour:
 
     def _scene(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext) -> LaneScene:
         fn = project_traffic(self.path, traffic, ego)
-        # lateral speeds only where they are a deliberate motion (cut-in recognition with
-        # hysteresis: a recording's jitter is not a cut-in; tracking.py)
+        # lateral speeds only where they are a deliberate motion (tracking.py): what every
+        # reader of the scene sees (the cut-in prediction, a ramp car's entry heading,
+        # the ellipses' predicted motion), so a recording's jitter is none of these
         fn = replace(fn, v_y_mps=self._tracker.lateral(ego.t_s, traffic.ids, fn.v_y_mps))
         rel = relative_lanes(traffic, fn, lanes, self.lane_width_m)
         scene = LaneScene(ego, self.ego.length_m, self.ego.width_m, traffic, fn, rel, lanes,
