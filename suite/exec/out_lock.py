@@ -71,16 +71,25 @@ def registry_lock(real: Path) -> Path:
     return folder / f"{hashlib.sha256(str(real).encode()).hexdigest()[:32]}.lock"
 
 
+class _RegistryConflict(Exception):
+    """Another process holds a registry lock that conflicts with this one: ``path``, the
+    directory whose entry it is."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(str(path))
+        self.path = path
+
+
 @contextmanager
 def _registry_hold(fd_path: Path, mode: int, label: Path) -> Iterator[None]:
-    """Hold ``mode`` (LOCK_EX or LOCK_SH) on the registry file ``fd_path``; OutDirBusy
-    naming ``label``'s writer when it conflicts."""
+    """Hold ``mode`` (LOCK_EX or LOCK_SH) on the registry file ``fd_path``;
+    :class:`_RegistryConflict` naming ``label`` when another process's lock conflicts."""
     fd = os.open(fd_path, os.O_RDWR | os.O_CREAT, 0o600)
     try:
         try:
             fcntl.flock(fd, mode | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise OutDirBusy(label) from None
+            raise _RegistryConflict(label) from None
         try:
             yield
         finally:
@@ -99,10 +108,9 @@ def _nested_holds(stack: ExitStack, out: Path, real: Path) -> None:
             if parent not in _HELD:
                 stack.enter_context(_registry_hold(registry_lock(parent), fcntl.LOCK_SH,
                                                    parent))
-    except OutDirBusy as busy:
-        other = Path(str(busy))
-        where = ("a directory inside it" if other == real
-                 else f"the directory {other} that contains it")
+    except _RegistryConflict as busy:
+        where = ("a directory inside it" if busy.path == real
+                 else f"the directory {busy.path} that contains it")
         raise OutDirBusy(f"{_shown(out, real)}: another hwyeval command is writing to "
                          f"{where}; wait for it to end, or choose another output "
                          "directory") from None
