@@ -72,6 +72,19 @@ class Output:
             os.close(devnull)
 
 
+def add_import_output(parser: argparse.ArgumentParser, doc_page: str) -> None:
+    """An import format's ``--out`` and ``--overwrite`` (the output-folder rules both
+    importers share: ``suite/importers/common/out_guard.py``; ``doc_page`` the format's
+    page, e.g. ``docs/recorded.md``)."""
+    parser.add_argument("--out", required=True, help="the folder to write (created; files "
+                        "of earlier imports stay; one holding files the import did not "
+                        "write, or an edited catalog.toml, needs --overwrite)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="import into an --out that holds files the import did not "
+                        "write (they stay untouched) and replace its catalog.toml even if "
+                        f"it was edited or hand-written ({doc_page})")
+
+
 def err(msg: str) -> None:
     print(f"hwyeval: {msg}", file=sys.stderr)
 

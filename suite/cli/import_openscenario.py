@@ -15,7 +15,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from suite.cli.common import EXIT_INPUT, EXIT_OK, Output, err, whole_number, writing_to
+from suite.cli.common import (
+    EXIT_INPUT,
+    EXIT_OK,
+    Output,
+    add_import_output,
+    err,
+    whole_number,
+    writing_to,
+)
 
 __all__ = ["add_openscenario_parser"]
 
@@ -35,13 +43,7 @@ def add_openscenario_parser(fmt: argparse._SubParsersAction[argparse.ArgumentPar
     c = fmt.add_parser("openscenario", help="OpenSCENARIO 1.x files -> nets, storyboards, "
                                             "catalog.toml")
     c.add_argument("files", nargs="+", metavar="FILE.xosc")
-    c.add_argument("--out", required=True, help="the folder to write (created; files of "
-                   "earlier imports stay; one holding files the import did not write, or "
-                   "an edited catalog.toml, needs --overwrite)")
-    c.add_argument("--overwrite", action="store_true",
-                   help="import into an --out that holds files the import did not write "
-                   "(they stay untouched) and replace its catalog.toml even if it was "
-                   "edited or hand-written (docs/openscenario.md)")
+    add_import_output(c, "docs/openscenario.md")
     c.add_argument("--ego", default=None, metavar="NAME",
                    help="the entity the controller drives (default: the one named Ego/Hero)")
     c.add_argument("--ignore-constraints", action="store_true",

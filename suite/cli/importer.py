@@ -15,7 +15,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from suite.cli.common import EXIT_INPUT, EXIT_OK, Output, err, whole_number, writing_to
+from suite.cli.common import (
+    EXIT_INPUT,
+    EXIT_OK,
+    Output,
+    add_import_output,
+    err,
+    whole_number,
+    writing_to,
+)
 from suite.cli.import_openscenario import add_openscenario_parser
 
 
@@ -39,19 +47,13 @@ def _obstacle_id(text: str) -> int:
 
 
 def add_import_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """The ``import`` sub-command and its formats (``commonroad``)."""
-    s = sub.add_parser("import", help="import recorded scenarios (CommonRoad XML) into a "
-                                      "catalog folder")
+    """The ``import`` sub-command and its formats (``commonroad``, ``openscenario``)."""
+    s = sub.add_parser("import", help="import scenarios (CommonRoad recordings, OpenSCENARIO "
+                                      "files) into a catalog folder")
     fmt = s.add_subparsers(dest="format", required=True)
     c = fmt.add_parser("commonroad", help="CommonRoad XML files -> nets, tracks, catalog.toml")
     c.add_argument("files", nargs="+", metavar="FILE.xml")
-    c.add_argument("--out", required=True, help="the folder to write (created; files of "
-                   "earlier imports stay; one holding files the import did not write, or "
-                   "an edited catalog.toml, needs --overwrite)")
-    c.add_argument("--overwrite", action="store_true",
-                   help="import into an --out that holds files the import did not write "
-                   "(they stay untouched) and replace its catalog.toml even if it was "
-                   "edited or hand-written (docs/recorded.md)")
+    add_import_output(c, "docs/recorded.md")
     c.add_argument("--extension-m", type=_metres, default=None, metavar="M",
                    help="straight road added where the recorded road ends (default 1000)")
     c.add_argument("--approach-m", type=_metres, default=None, metavar="M",
