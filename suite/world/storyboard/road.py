@@ -13,8 +13,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
-import numpy as np
-
+from suite.road.lane_pose import lane_frame
 from suite.road.network import RoadNetwork
 
 __all__ = ["LaneRoad", "SumoRoad"]
@@ -47,33 +46,13 @@ def lane_of(road: LaneRoad, pos_m: float, y_m: float) -> tuple[int, float]:
 
 
 @dataclass
-class _LaneShape:
-    """A lane's shape (n, 2) [m], its cumulative arc length [m] and route metres per
-    shape metre (as :func:`suite.road.lane_pose.lane_frame` scales them)."""
-
-    xy: np.ndarray
-    cum: np.ndarray
-    scale: float
-
-    def point(self, a_m: float) -> tuple[float, float, float]:
-        """(x, y, heading) at arc length ``a_m``, straight on beyond the ends."""
-        i = int(np.clip(np.searchsorted(self.cum, a_m, side="right") - 1, 0,
-                        len(self.cum) - 2))
-        seg = self.xy[i + 1] - self.xy[i]
-        t = (a_m - float(self.cum[i])) / float(self.cum[i + 1] - self.cum[i])
-        return (float(self.xy[i, 0] + t * seg[0]), float(self.xy[i, 1] + t * seg[1]),
-                math.atan2(float(seg[1]), float(seg[0])))
-
-
-@dataclass
 class SumoRoad:
-    """Lanes and poses along ``route`` of ``network`` (lane widths and shapes cached per
-    edge; the frame of :func:`suite.road.lane_pose.lane_frame`)."""
+    """Lanes and poses along ``route`` of ``network`` (lane widths cached per edge; poses
+    in the frame of :func:`suite.road.lane_pose.lane_frame`)."""
 
     network: RoadNetwork
     route: tuple[str, ...]
     _widths: dict[str, tuple[float, ...]] = field(default_factory=dict)
-    _shapes: dict[str, tuple[_LaneShape, ...]] = field(default_factory=dict)
 
     def _clip(self, pos_m: float) -> float:
         return min(max(pos_m, 0.0), self.network.route_length_m(self.route) - 1e-6)
@@ -85,25 +64,17 @@ class SumoRoad:
                                        for i in range(self.network.lane_count(edge)))
         return self._widths[edge]
 
-    def _lanes(self, edge: str) -> tuple[_LaneShape, ...]:
-        if edge not in self._shapes:
-            out = []
-            for ln in self.network.lane_info((edge,)):
-                xy = np.asarray(ln.shape_xy_m, dtype=np.float64)
-                seg = np.hypot(*np.diff(xy, axis=0).T)
-                keep = np.concatenate([[True], seg > 0.0])
-                xy = xy[keep]
-                cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-                out.append(_LaneShape(xy, cum, self.network.edge_length_m(edge)
-                                      / float(cum[-1])))
-            self._shapes[edge] = tuple(out)
-        return self._shapes[edge]
-
     def pose(self, pos_m: float, lane: int, lateral_m: float,
              heading_rad: float) -> tuple[float, float, float]:
-        """World front bumper (x, y) [m] and heading [rad]; straight on past the ends."""
-        edge, along = self.network.locate(self.route, self._clip(pos_m))
-        shapes = self._lanes(edge)
-        shape = shapes[min(max(lane, 0), len(shapes) - 1)]
-        x, y, h = shape.point((along + pos_m - self._clip(pos_m)) / shape.scale)
-        return x - lateral_m * math.sin(h), y + lateral_m * math.cos(h), h + heading_rad
+        """World front bumper (x, y) [m] and heading [rad]: the pose in the frame of lane
+        ``lane`` (clamped to the edge's lanes) at ``pos_m``
+        (:func:`suite.road.lane_pose.lane_frame`, where a run starts its ego), straight
+        on along the frame past the route's ends."""
+        clipped = self._clip(pos_m)
+        edge, _ = self.network.locate(self.route, clipped)
+        last = self.network.lane_count(edge) - 1
+        frame = lane_frame(self.network, self.route, clipped, min(max(lane, 0), last))
+        beyond_m = (pos_m - clipped) / frame.scale  # lane-shape metres past the end
+        x, y, h = frame.place(lateral_m, heading_rad)
+        return (x + beyond_m * math.cos(frame.heading_rad),
+                y + beyond_m * math.sin(frame.heading_rad), h)
