@@ -5,7 +5,8 @@ name=scenario classname="controller.family" time=wall_s>``. A failed run carries
 ``<failure message=... type="criteria">`` listing the stored verdict's failures (one
 line each, with the time and trace step where the criterion was violated), an error
 run ``<error type="error">`` with the traceback (or why its directory cannot be read),
-a timeout ``<error type="timeout">``. Key metrics go to ``<system-out>``.
+a timeout ``<error type="timeout">``. Key metrics go to ``<system-out>``: those with a
+``junit`` rank in the metric catalogue (:mod:`reports.metrics.catalogue`), in its order.
 
 A known failure (``xfail``, :mod:`reports.expectation`) that failed as expected is
 ``<skipped type="xfail" message="expected failure: <reason>">`` with its failures as
@@ -23,14 +24,14 @@ from pathlib import Path
 
 from reports.expectation import XFAILED, XPASSED
 from reports.manifest import Manifest, not_run
+from reports.metrics.catalogue import JUNIT_METRICS
 from reports.record import Failure
 from reports.record.codec import write_text_atomic
 from reports.tables import RunEntry
 
 _INVALID_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
-KEY_METRICS = ("collision", "collision_disagreements", "min_gap_m", "min_ttc_s",
-               "progress_m", "offroad_s", "max_abs_lat_acc_mps2", "max_abs_jerk_mps3",
-               "rms_lat_dev_m", "step_ms_p99", "deadline_misses")
+# the metrics of a case's <system-out>, in order: the catalogue's ``junit`` role
+KEY_METRICS = JUNIT_METRICS
 
 
 def xml_text(text: str) -> str:

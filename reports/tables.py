@@ -21,7 +21,7 @@ import pandas as pd
 
 from reports.expectation import Xfail, expectation, fails_night, xfail_of
 from reports.identity import Setup, setup_of
-from reports.metrics.evaluate import REQUIRED_METRICS
+from reports.metrics.catalogue import REQUIRED_METRICS, SUMMARY_METRICS
 from reports.metrics.robustness import robustness
 from reports.metrics.timing import loop_times_s
 from reports.pool import TimePool
@@ -47,25 +47,8 @@ UNKNOWN = "?"  # the controller of a run directory whose run.json cannot be read
 LEAD_COLUMNS = ("scenario", "controller", "variant", "status", "collision", "min_gap_m",
                 "progress_m", "sim_time_s", "wall_s")
 
-# summary.csv: metric -> aggregations over the runs of a group (finite values only)
-SUMMARY_METRICS: dict[str, tuple[str, ...]] = {
-    "collision": ("sum",),
-    "min_gap_m": ("min", "mean"),
-    "min_ttc_s": ("min", "mean"),
-    "progress_m": ("mean",),
-    "progress_ratio": ("min", "mean"),
-    "offroad_s": ("max", "sum"),
-    "rms_lat_dev_m": ("mean", "max"),
-    "mean_speed_mps": ("mean",),
-    "max_abs_lat_acc_mps2": ("mean", "max"),
-    "max_abs_long_jerk_mps3": ("mean", "max"),
-    "max_abs_jerk_mps3": ("mean", "max"),
-    "max_abs_yaw_rate_radps": ("max",),
-    "residual_max": ("max",),
-    "fallbacks": ("sum",),
-    "deadline_misses": ("sum",),
-    "realtime_factor": ("mean", "min"),
-}
+# summary.csv: metric -> aggregations over the runs of a group (the catalogue's
+# ``Summary`` roles, reports.metrics.catalogue), in column order
 # pooled per-step timing over all runs of a group: loop -> percentiles (reports.pool)
 SUMMARY_TIMING: dict[str, tuple[int, ...]] = {"step": (50, 99), "outer": (50, 99),
                                               "inner": (50, 99), "sumo": (50, 99)}

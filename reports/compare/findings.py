@@ -27,6 +27,9 @@ comparison):
 ``criterion_off``      the new run's value under both limits (informational)
 ``test_changed``,      the test, the system under test changed (informational; the
 ``sut_changed``        behaviour findings of the run say what it did)
+``metric_not_in_base``  a metric the new run has and the base run has not (a metric
+``metric_not_in_new``  added since; or removed): "not in base", never compared, never a
+                       regression (informational)
 ``new``, ``fixed``, ``status_change``, ``metric_improvement``, ``timing_faster``,
 ``metric_nan``         informational
 =====================  =========================================================
@@ -277,8 +280,27 @@ def _ratio_row(key: str, n: RunEntry, mb: MetricValue, mn: MetricValue,
     return None
 
 
+NOT_IN_BASE = "metric_not_in_base"
+NOT_IN_NEW = "metric_not_in_new"
+
+
+def unpaired_rows(key: str, b: RunEntry, n: RunEntry) -> list[CompareRow]:
+    """The metrics stored on one side of a matched run only (e.g. a metric the catalogue
+    gained after base ran): informational, never compared."""
+    names_b, names_n = {m.name for m in b.metrics}, {m.name for m in n.metrics}
+    common: dict[str, Any] = {"key": key, "scenario": n.scenario, "controller": n.controller}
+    rows = [CompareRow(kind=NOT_IN_BASE, metric=m.name, unit=m.unit, metric_kind=m.kind,
+                       new=m.value, note="not in base: not compared", **common)
+            for m in n.metrics if m.name not in names_b]
+    rows += [CompareRow(kind=NOT_IN_NEW, metric=m.name, unit=m.unit, metric_kind=m.kind,
+                        base=m.value, note="not in new: not compared", **common)
+             for m in b.metrics if m.name not in names_n]
+    return rows
+
+
 def metric_rows(key: str, b: RunEntry, n: RunEntry, tol: Tolerances) -> list[CompareRow]:
-    """Every metric change of one matched run beyond its tolerance or ratio."""
+    """Every metric change of one matched run beyond its tolerance or ratio, then the
+    metrics of one side only (:func:`unpaired_rows`)."""
     rows = []
     for mb, mn in _metric_pairs(b, n):
         if mn.kind == "timing" and mn.name in tol.timing:
@@ -289,4 +311,4 @@ def metric_rows(key: str, b: RunEntry, n: RunEntry, tol: Tolerances) -> list[Com
             row = _tolerance_row(key, n, mb, mn, tol)
         if row is not None:
             rows.append(row)
-    return rows
+    return rows + (unpaired_rows(key, b, n) if b.metrics and n.metrics else [])

@@ -1,16 +1,18 @@
 """Base against new for the metric a finding is about: one chart per finding, both runs'
 time series of that metric overlaid, with the limit in force.
 
-A metric is drawn from the series it is the extreme of (:data:`METRIC_SERIES`): e.g.
-``min_ttc_s`` from the time to collision ahead per step, ``max_abs_long_jerk_mps3``
-from the longitudinal jerk, ``min_gap_m`` from the box-to-box gap. A metric without a
-series (counts, timing) gets no chart. Base is drawn grey and dashed, new in colour;
+A metric is drawn as its catalogue entry's ``drawing`` says (:data:`METRIC_SERIES`, from
+:mod:`reports.metrics.catalogue`), from the series it is the extreme of: e.g.
+``min_ttc_s`` from the time to collision ahead per step (no conflict drawn at 10 s),
+``max_abs_long_jerk_mps3`` from the longitudinal jerk, ``min_gap_m`` from the
+box-to-box gap, ``rms_lat_dev_m`` from the lateral deviation it aggregates. A metric
+without a drawing (counts, timing) gets no chart. Base is drawn grey and dashed, new in colour;
 the finding's value on each side is in the legend.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from html import escape
 from pathlib import Path
@@ -19,6 +21,9 @@ import numpy as np
 
 from reports.charts import Line, Series, fmt, line_chart
 from reports.compare.findings import CompareRow
+from reports.metrics.catalogue import DRAWN
+from reports.metrics.catalogue import TTC_CAP_S as CAP_S
+from reports.metrics.values import signal
 from reports.record import RecordError, RunRecord, load_run
 from reports.record.columns import FloatColumn
 from reports.tables import RunEntry, find_entry
@@ -26,68 +31,36 @@ from reports.tables import RunEntry, find_entry
 __all__ = ["MAX_OVERLAYS", "METRIC_SERIES", "MetricSeries", "overlays_html"]
 
 MAX_OVERLAYS = 24  # charts per page: the first findings of each table, in its order
-TTC_CAP_S = 10.0  # no conflict ahead is drawn at this TTC [s]
+TTC_CAP_S = CAP_S  # no conflict ahead is drawn at this TTC [s]
 
 
 @dataclass(frozen=True)
 class MetricSeries:
-    """The per-step series a metric is the extreme of: ``label`` and ``unit`` of the
-    axis and ``values(record)`` -> (n,) over the trace's ``t_s`` (None when absent)."""
+    """The per-step series a metric is drawn from: ``label`` and ``unit`` of the axis,
+    ``ref`` the signal (``"<group>.<column>"``, :func:`reports.metrics.values.signal`)
+    and ``cap`` (+inf and values above drawn at it; None: non-finite values are gaps)."""
 
     label: str
     unit: str
-    values: Callable[[RunRecord], FloatColumn | None]
+    ref: str
+    cap: float | None = None
 
-
-def _series(name: str) -> Callable[[RunRecord], FloatColumn | None]:
-    def get(rec: RunRecord) -> FloatColumn | None:
-        if rec.series is None:
+    def values(self, rec: RunRecord) -> FloatColumn | None:
+        """(n,) over the trace's ``t_s``, None when the record lacks the signal."""
+        y = signal(self.ref, rec.trace, rec.series)
+        if y is None:
             return None
-        out: FloatColumn = np.asarray(getattr(rec.series, name), dtype=np.float64)
-        return out
-    return get
+        if self.cap is not None:
+            out: FloatColumn = np.minimum(y, self.cap)
+            return out
+        finite: FloatColumn = np.where(np.isfinite(y), y, np.nan)
+        return finite
 
 
-def _ttc(rec: RunRecord) -> FloatColumn | None:
-    if rec.series is None:
-        return None
-    out: FloatColumn = np.minimum(np.asarray(rec.series.ttc_s, dtype=np.float64), TTC_CAP_S)
-    return out
-
-
-def _gap(rec: RunRecord) -> FloatColumn:
-    gap = np.asarray(rec.trace.safety.min_gap_m, dtype=np.float64)
-    out: FloatColumn = np.where(np.isfinite(gap), gap, np.nan)
-    return out
-
-
-def _ego(name: str) -> Callable[[RunRecord], FloatColumn]:
-    def get(rec: RunRecord) -> FloatColumn:
-        out: FloatColumn = np.asarray(getattr(rec.trace.ego, name), dtype=np.float64)
-        return out
-    return get
-
-
-_ACC = MetricSeries("longitudinal acceleration", "m/s²", _series("long_acc_mps2"))
+# metric -> how it is drawn: every catalogue entry with a drawing
 METRIC_SERIES: dict[str, MetricSeries] = {
-    "min_ttc_s": MetricSeries(f"TTC ahead (none = {TTC_CAP_S:g})", "s", _ttc),
-    "min_gap_m": MetricSeries("gap to the nearest vehicle (box to box)", "m", _gap),
-    "min_long_acc_mps2": _ACC,
-    "max_long_acc_mps2": _ACC,
-    "max_abs_lat_acc_mps2": MetricSeries("lateral acceleration", "m/s²",
-                                         _series("lat_acc_mps2")),
-    "max_abs_long_jerk_mps3": MetricSeries("longitudinal jerk", "m/s³",
-                                           _series("long_jerk_mps3")),
-    "max_abs_jerk_mps3": MetricSeries("jerk", "m/s³", _series("jerk_mps3")),
-    "max_abs_yaw_rate_radps": MetricSeries("yaw rate", "rad/s", _series("yaw_rate_radps")),
-    "max_abs_yaw_acc_radps2": MetricSeries("yaw acceleration", "rad/s²",
-                                           _series("yaw_acc_radps2")),
-    "min_ellipse_margin": MetricSeries("ellipse margin", "-", _series("ellipse_margin")),
-    **dict.fromkeys(("offroad_s", "max_offroad_m"), MetricSeries(
-        "corner beyond the drivable area", "m", _series("offroad_excess_m"))),
-    **dict.fromkeys(("rms_lat_dev_m", "final_abs_lat_dev_m", "max_abs_lat_dev_m"),
-                    MetricSeries("lateral deviation", "m", _ego("lat_dev_m"))),
-}
+    name: MetricSeries(s.drawing.label, s.drawing.unit, s.drawn_series, s.drawing.cap)
+    for name, s in DRAWN.items() if s.drawing is not None}
 
 
 def _run_dir(runs: Sequence[RunEntry], row: CompareRow) -> Path | None:

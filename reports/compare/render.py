@@ -3,7 +3,8 @@
 Terminal: a header (both sides with their revision, host and load), the verdict, the
 regressions as ``run  metric  base → new unit``, warnings (timing per metric as the
 catalog's median ratio with its range, then the slowest runs), provenance
-differences, fixed and missing runs. ``--json`` prints :func:`as_json` instead.
+differences, the metrics stored on one side only ("not in base": a metric added since;
+never a regression), fixed and missing runs. ``--json`` prints :func:`as_json` instead.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from reports.charts import CHART_CSS
-from reports.compare.findings import GOOD_KINDS, CompareRow
+from reports.compare.findings import GOOD_KINDS, NOT_IN_BASE, NOT_IN_NEW, CompareRow
 from reports.compare.kinds import GATING_CATEGORIES
 from reports.compare.overlay import overlays_html
 from reports.manifest import Manifest
@@ -108,6 +109,20 @@ def _timing_block(result: CompareResult) -> list[str]:
     return lines
 
 
+def _unpaired_block(result: CompareResult) -> list[str]:
+    """One line for the metrics stored on one side only (a metric added to the catalogue
+    since base ran is "not in base"): per metric, the runs; never a regression."""
+    runs: dict[tuple[str, str], int] = {}
+    for r in result.of_kind(NOT_IN_BASE, NOT_IN_NEW):
+        side = "not in base" if r.kind == NOT_IN_BASE else "not in new"
+        runs[(r.metric, side)] = runs.get((r.metric, side), 0) + 1
+    if not runs:
+        return []
+    listed = ", ".join(f"{metric} {side} ({n} run(s))"
+                       for (metric, side), n in sorted(runs.items()))
+    return [f"metrics on one side only (not compared, do not gate): {listed}"]
+
+
 def _verdict(result: CompareResult) -> str:
     """The terminal's last line: why the comparison fails, or that it does not."""
     if result.timing_failures:
@@ -149,6 +164,7 @@ def summary_text(result: CompareResult) -> str:
     if health:
         lines.append(f"health (warns, {len(health)}):")
         lines += _listed(health)
+    lines += _unpaired_block(result)
     if result.fixed:
         lines.append(f"fixed ({len(result.fixed)}):")
         lines += _listed(result.fixed_rows)

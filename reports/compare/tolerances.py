@@ -1,6 +1,8 @@
 """What counts as a change worth reporting: per-metric tolerances, timing ratios, gates.
 
-Behaviour metrics (kinds :data:`GATE_KINDS`, default safety, comfort, tracking) fail the
+The defaults are the metric catalogue's (:mod:`reports.metrics.catalogue`: each entry's
+``tolerance`` and, for a timing metric, ``timing_ratio``). Behaviour metrics (kinds
+:data:`GATE_KINDS`, default safety, comfort, tracking) fail the
 comparison when they move in their worse direction by more than
 max(abs, rel·|base|); the direction is the metric's own ``better`` unless the TOML
 names one. Timing metrics (kind ``timing``: wall-clock, noisy) are compared by ratio
@@ -29,6 +31,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
+
+from reports.metrics.catalogue import CATALOGUE
 
 HIGHER_IS_WORSE = "higher_is_worse"
 LOWER_IS_WORSE = "lower_is_worse"
@@ -74,53 +78,16 @@ DEFAULT_TOLERANCE = MetricTolerance(1e-6, 0.05)
 
 
 def default_metric_tolerances() -> dict[str, MetricTolerance]:
-    """Default per-metric tolerances (units of each metric)."""
-    return {
-        "collision": MetricTolerance(0.5, 0.0),
-        "min_gap_m": MetricTolerance(0.25, 0.1),
-        "min_ttc_s": MetricTolerance(0.2, 0.1),
-        "min_ellipse_margin": MetricTolerance(0.1, 0.1),
-        "offroad_s": MetricTolerance(0.1, 0.0),
-        "shoulder_s": MetricTolerance(0.5, 0.1),
-        "progress_m": MetricTolerance(5.0, 0.05),
-        "progress_ratio": MetricTolerance(0.05, 0.0),
-        "rms_lat_dev_m": MetricTolerance(0.05, 0.1),
-        "max_abs_lat_dev_m": MetricTolerance(0.1, 0.1),
-        "final_abs_lat_dev_m": MetricTolerance(0.1, 0.1),
-        "max_abs_heading_err_rad": MetricTolerance(0.01, 0.1),
-        "mean_speed_mps": MetricTolerance(0.5, 0.05),
-        "route_fraction": MetricTolerance(0.02, 0.0),
-        "max_offroad_m": MetricTolerance(0.1, 0.1),
-        "offroad_m": MetricTolerance(1.0, 0.1),
-        "geom_collision_steps": MetricTolerance(0.5, 0.0),
-        "sumo_collision_steps": MetricTolerance(0.5, 0.0),
-        "sumo_collisions_reported": MetricTolerance(0.5, 0.0),
-        "min_ttc_rear_s": MetricTolerance(0.2, 0.1),
-        "ssm_ttc_min_s": MetricTolerance(0.2, 0.1),
-        "sumo_ssm_min_ttc_s": MetricTolerance(0.2, 0.1),
-        "sumo_ssm_conflicts": MetricTolerance(0.5, 0.0),
-        "sumo_ssm_max_drac_mps2": MetricTolerance(0.3, 0.1),
-        "rms_lat_acc_mps2": MetricTolerance(0.1, 0.1),
-        "min_long_acc_mps2": MetricTolerance(0.2, 0.1),
-        "max_long_acc_mps2": MetricTolerance(0.2, 0.1),
-        "max_abs_lat_acc_mps2": MetricTolerance(0.2, 0.1),
-        "max_abs_yaw_rate_radps": MetricTolerance(0.02, 0.1),
-        "max_abs_yaw_acc_radps2": MetricTolerance(0.1, 0.1),
-        "max_abs_long_jerk_mps3": MetricTolerance(0.3, 0.15),
-        "max_abs_jerk_mps3": MetricTolerance(0.3, 0.15),
-        "residual_max": MetricTolerance(1e-3, 1.0),
-        "residual_final": MetricTolerance(1e-3, 1.0),
-        "fallbacks": MetricTolerance(0.5, 0.0),
-        "guards": MetricTolerance(2.0, 0.25),
-        # timing counts: compared by difference, reported with the timing
-        "deadline_misses": MetricTolerance(2.0, 0.5),
-    }
+    """Default per-metric tolerances (units of each metric): the catalogue's
+    ``tolerance`` role (:mod:`reports.metrics.catalogue`)."""
+    return {s.name: MetricTolerance(s.tolerance.abs, s.tolerance.rel)
+            for s in CATALOGUE if s.tolerance is not None}
 
 
 def default_timing_ratios() -> dict[str, float]:
-    """Default max timing ratios (new/base; base/new where higher is better)."""
-    return {"step_ms_p50": 1.5, "step_ms_p99": 1.5, "outer_ms_p99": 1.5, "inner_ms_p99": 1.5,
-            "sumo_ms_p50": 1.5, "realtime_factor": 1.5}
+    """Default max timing ratios (new/base; base/new where higher is better): the
+    catalogue's ``timing_ratio`` role."""
+    return {s.name: s.timing_ratio for s in CATALOGUE if s.timing_ratio is not None}
 
 
 @dataclass(frozen=True)

@@ -51,7 +51,7 @@ from reports.identity import (
     digests_of_run_json,
 )
 from reports.manifest import MANIFEST, read_manifest
-from reports.metrics.criteria import CRITERIA_METRICS
+from reports.metrics.catalogue import CRITERIA_METRICS
 from reports.record import RUN_JSON, Failure, iter_run_dirs
 from reports.record.codec import RecordError, decode_dataclass
 from reports.record.meta import STATUSES

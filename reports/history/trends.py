@@ -43,11 +43,12 @@ from reports.expectation import XFAILED, XPASSED, Xfail, expectation, fails_nigh
 from reports.history.schema import METRIC_NAME, HistoryError, metric_columns
 from reports.history.store import DEFAULT_WAIT_S, NightInfo, night_infos, reading
 from reports.identity import CHANGE_KINDS, Setup, flatten_options, setup_change
+from reports.metrics.catalogue import DEFAULT_SPARKLINE
 from reports.record import Failure
 
 FLAKY_ALTERNATIONS = 3
 ABSENT = "absent"
-DEFAULT_METRIC = "min_ttc_s"
+DEFAULT_METRIC = DEFAULT_SPARKLINE  # the catalogue's sparkline entry (min_ttc_s)
 NO_CHANGE: tuple[str, ...] = ()
 
 

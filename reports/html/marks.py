@@ -11,9 +11,11 @@ import math
 from dataclasses import dataclass
 
 from reports.charts import fmt
+from reports.metrics.catalogue import CATALOGUE
 from reports.tables import RunEntry
 
-MARK_COLOURS = {"collision": "#dc2626", "offroad_s": "#ea580c", "min_ttc_s": "#db2777"}
+# metric -> colour of its failure mark: the catalogue's ``mark`` role
+MARK_COLOURS = {s.name: s.mark for s in CATALOGUE if s.mark}
 DEFAULT_MARK_COLOUR = "#9333ea"
 END_MARK_COLOUR = "#7c3aed"
 

@@ -690,13 +690,13 @@ def classify_collisions(ctx: RunContext) -> tuple[CollisionEvent, ...]:
 # ------------------------------------------------------------------ metrics
 
 
-def _count(name: str, located: list[int], n: int, better: str = "lower") -> Measured:
+def _count(name: str, located: list[int], n: int) -> Measured:
     """A count located at its first item's row; increments 1 per item at its row."""
     inc = np.zeros(n)
     for row in located:
         inc[row] += 1.0
-    return measured(name, float(len(located)), "-", "safety", better,
-                    worst_step=min(located) if located else None, increments=inc)
+    return measured(name, float(len(located)), worst_step=min(located) if located else None,
+                    increments=inc)
 
 
 def _sumo_role_episodes(ctx: RunContext, role: str) -> float:
@@ -721,12 +721,10 @@ INFO_NAMES = ("sumo_collisions_as_collider", "sumo_collisions_as_victim",
 
 def _empty_metrics() -> list[Measured]:
     nan = float("nan")
-    return [measured("collision", 0.0, "-", "safety", "lower"),
-            measured("first_collision_t_s", nan, "s", "safety", "none"),
-            *(measured(name, nan, "-", "safety", "lower") for name in COUNT_NAMES),
-            *(measured(name, nan, "-", "safety", "none") for name in INFO_NAMES),
-            measured("first_at_fault_collision_t_s", nan, "s", "safety", "none"),
-            measured("max_at_fault_delta_v_mps", nan, "m/s", "safety", "lower")]
+    return [measured("collision", 0.0), measured("first_collision_t_s", nan),
+            *(measured(name, nan) for name in (*COUNT_NAMES, *INFO_NAMES)),
+            measured("first_at_fault_collision_t_s", nan),
+            measured("max_at_fault_delta_v_mps", nan)]
 
 
 def collision_metrics(ctx: RunContext, judgement: CollisionJudgement) -> list[Measured]:
@@ -739,25 +737,25 @@ def collision_metrics(ctx: RunContext, judgement: CollisionJudgement) -> list[Me
     first = every[0] if every else None
     once = [first.row] if first is not None else []
     out = [_count("collision", once, n),
-           measured("first_collision_t_s", first.t_s if first is not None else math.nan, "s",
-                    "safety", "none", worst_step=first.row if first is not None else None),
+           measured("first_collision_t_s", first.t_s if first is not None else math.nan,
+                    worst_step=first.row if first is not None else None),
            _count("collisions", [e.row for e in every], n),
            _count("at_fault_collisions", [e.row for e in fault], n)]
     out += [_count(f"collisions_{k.value}", [e.row for e in every if e.kind == k], n)
             for k in CollisionClass]
     out.append(_count("swept_only_collisions", [e.row for e in every if e.evidence == SWEPT],
                       n))
-    out += [measured(f"sumo_collisions_as_{role}", _sumo_role_episodes(ctx, role), "-",
-                     "safety", "none") for role in ("collider", "victim")]
+    out += [measured(f"sumo_collisions_as_{role}", _sumo_role_episodes(ctx, role))
+            for role in ("collider", "victim")]
     found = judgement.disagreements
-    out.append(_count("collision_disagreements", [d.step for d in found], n, "none"))
-    out += [_count(f"{kind}_collisions", [d.step for d in found if d.kind == kind], n, "none")
+    out.append(_count("collision_disagreements", [d.step for d in found], n))
+    out += [_count(f"{kind}_collisions", [d.step for d in found if d.kind == kind], n)
             for kind in (SUMO_ONLY, GEOMETRY_ONLY)]
     worst = max(fault, key=lambda e: e.delta_v_mps) if fault else None
     out += [
-        measured("first_at_fault_collision_t_s", fault[0].t_s if fault else math.nan, "s",
-                 "safety", "none", worst_step=fault[0].row if fault else None),
-        measured("max_at_fault_delta_v_mps", worst.delta_v_mps if worst else 0.0, "m/s",
-                 "safety", "lower", worst_step=worst.row if worst else None),
+        measured("first_at_fault_collision_t_s", fault[0].t_s if fault else math.nan,
+                 worst_step=fault[0].row if fault else None),
+        measured("max_at_fault_delta_v_mps", worst.delta_v_mps if worst else 0.0,
+                 worst_step=worst.row if worst else None),
     ]
     return out

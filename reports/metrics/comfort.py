@@ -144,11 +144,9 @@ def comfort_series(ctx: RunContext) -> ComfortSeries:
     )
 
 
-def _peak(name: str, values: np.ndarray, how: str, unit: str, better: str,
-          series: str) -> Measured:
+def _peak(name: str, values: np.ndarray, how: str) -> Measured:
     value, row = extreme(values, how)
-    return measured(name, value, unit, "comfort", better, worst_step=row,
-                    series=f"series.{series}")
+    return measured(name, value, worst_step=row)
 
 
 def comfort_metrics(s: ComfortSeries) -> list[Measured]:
@@ -157,18 +155,14 @@ def comfort_metrics(s: ComfortSeries) -> list[Measured]:
     lat = s.lat_acc_mps2[np.isfinite(s.lat_acc_mps2)]
     rms = float(np.sqrt(np.mean(lat * lat))) if lat.size else float("nan")
     return [
-        _peak("min_long_acc_mps2", s.long_acc_mps2, "min", "m/s^2", "higher", "long_acc_mps2"),
-        _peak("max_long_acc_mps2", s.long_acc_mps2, "max", "m/s^2", "lower", "long_acc_mps2"),
-        _peak("max_abs_lat_acc_mps2", np.abs(s.lat_acc_mps2), "max", "m/s^2", "lower",
-              "lat_acc_mps2"),
-        measured("rms_lat_acc_mps2", rms, "m/s^2", "comfort", "lower"),
-        _peak("max_abs_yaw_rate_radps", np.abs(s.yaw_rate_radps), "max", "rad/s", "lower",
-              "yaw_rate_radps"),
-        _peak("max_abs_yaw_acc_radps2", np.abs(s.yaw_acc_radps2), "max", "rad/s^2", "lower",
-              "yaw_acc_radps2"),
-        _peak("max_abs_long_jerk_mps3", np.abs(s.long_jerk_mps3), "max", "m/s^3", "lower",
-              "long_jerk_mps3"),
-        _peak("max_abs_jerk_mps3", s.jerk_mps3, "max", "m/s^3", "lower", "jerk_mps3"),
+        _peak("min_long_acc_mps2", s.long_acc_mps2, "min"),
+        _peak("max_long_acc_mps2", s.long_acc_mps2, "max"),
+        _peak("max_abs_lat_acc_mps2", np.abs(s.lat_acc_mps2), "max"),
+        measured("rms_lat_acc_mps2", rms),
+        _peak("max_abs_yaw_rate_radps", np.abs(s.yaw_rate_radps), "max"),
+        _peak("max_abs_yaw_acc_radps2", np.abs(s.yaw_acc_radps2), "max"),
+        _peak("max_abs_long_jerk_mps3", np.abs(s.long_jerk_mps3), "max"),
+        _peak("max_abs_jerk_mps3", s.jerk_mps3, "max"),
     ]
 
 
@@ -183,5 +177,4 @@ def fallback_metrics(s: ComfortSeries, fallback: np.ndarray) -> list[Measured]:
     jerk = np.where(mask, np.abs(s.lat_jerk_mps3), np.nan) if mask.shape == \
         s.lat_jerk_mps3.shape else np.full(s.lat_jerk_mps3.shape, np.nan)
     value, row = extreme(jerk, "max")
-    return [measured("fallback_max_abs_lat_jerk_mps3", value, "m/s^3", "comfort", "lower",
-                     worst_step=row)]
+    return [measured("fallback_max_abs_lat_jerk_mps3", value, worst_step=row)]

@@ -1,7 +1,10 @@
 """Pass/fail criteria on run metrics, and the typed failures they produce.
 
-Each criterion bounds one metric (:data:`CRITERIA_METRICS`): ``max`` fails when the
-value exceeds the limit, ``min`` when it is below it. A criterion whose limit is
+Each criterion bounds one metric: its catalogue entry's
+:class:`~reports.metrics.spec.Criterion` (:mod:`reports.metrics.catalogue`, which
+:data:`CRITERIA_METRICS` lists, criterion -> (metric, bound), in check order) gives its
+name, bound and default limit: ``max`` fails when the value exceeds the limit, ``min``
+when it is below it. A criterion whose limit is
 ``None`` is off; one whose metric is NaN (not measurable in this run) is skipped.
 Defaults and the reasoning behind them are in ``docs/metrics.md``.
 
@@ -25,38 +28,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from reports.metrics.catalogue import CRITERIA, CRITERIA_METRICS
 from reports.metrics.values import Measured
 from reports.record import Failure
 
-# criterion field -> (metric name, bound: "max" fails if value > limit,
-#                                       "min" fails if value < limit)
-CRITERIA_METRICS: dict[str, tuple[str, str]] = {
-    "max_at_fault_collisions": ("at_fault_collisions", "max"),
-    "max_collision": ("collision", "max"),
-    "max_offroad_s": ("offroad_s", "max"),
-    "min_ttc_s": ("min_ttc_s", "min"),
-    "min_progress_fraction": ("progress_ratio", "min"),
-    "min_long_acc_mps2": ("min_long_acc_mps2", "min"),
-    "max_long_acc_mps2": ("max_long_acc_mps2", "max"),
-    "max_abs_lat_acc_mps2": ("max_abs_lat_acc_mps2", "max"),
-    "max_abs_yaw_rate_radps": ("max_abs_yaw_rate_radps", "max"),
-    "max_abs_yaw_acc_radps2": ("max_abs_yaw_acc_radps2", "max"),
-    "max_abs_long_jerk_mps3": ("max_abs_long_jerk_mps3", "max"),
-    "max_abs_jerk_mps3": ("max_abs_jerk_mps3", "max"),
-    "min_gap_m": ("min_gap_m", "min"),
-    "min_ellipse_margin": ("min_ellipse_margin", "min"),
-    "max_shoulder_s": ("shoulder_s", "max"),
-    "max_rms_lat_dev_m": ("rms_lat_dev_m", "max"),
-    "max_final_abs_lat_dev_m": ("final_abs_lat_dev_m", "max"),
-    "max_deadline_misses": ("deadline_misses", "max"),
-    "max_fallbacks": ("fallbacks", "max"),
-    "max_residual": ("residual_max", "max"),
-}
+__all__ = ["CRITERIA_METRICS", "OFF", "STEPS_CRITERION", "Criteria", "override_limit",
+           "override_problem", "steps_failure", "violation_step"]
 
 # Not a Criteria field: a run without trace rows has nothing to judge and fails this.
 STEPS_CRITERION = "min_steps"
@@ -85,36 +67,48 @@ def override_limit(value: Any) -> float | None:
     return None if value is None or value == OFF else float(value)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Criteria:
-    """Limits; ``None`` disables a criterion. Units are in the names."""
+    """The limit of every criterion of the catalogue (:data:`CRITERIA_METRICS` order);
+    ``None`` disables one. ``Criteria(min_ttc_s=1.2, max_collision=None)``: the
+    catalogue's defaults with those replaced (TypeError for a name the catalogue has no
+    criterion of); ``criteria.min_ttc_s`` reads one limit [the metric's unit]."""
 
-    max_at_fault_collisions: float | None = 0.0  # nuPlan's classes (metrics.collisions)
-    max_collision: float | None = None  # any 2-D box contact (not SUMO-only): off, reported
-    max_offroad_s: float | None = 0.0
-    min_ttc_s: float | None = 0.95
-    min_progress_fraction: float | None = 0.5
-    min_long_acc_mps2: float | None = -4.05
-    max_long_acc_mps2: float | None = 2.40
-    max_abs_lat_acc_mps2: float | None = 4.89
-    max_abs_yaw_rate_radps: float | None = 0.95
-    max_abs_yaw_acc_radps2: float | None = 1.93
-    max_abs_long_jerk_mps3: float | None = 4.13
-    max_abs_jerk_mps3: float | None = 8.37
-    # off by default; a catalog may enable them
-    min_gap_m: float | None = None
-    min_ellipse_margin: float | None = None
-    max_shoulder_s: float | None = None
-    max_rms_lat_dev_m: float | None = None
-    max_final_abs_lat_dev_m: float | None = None
-    max_deadline_misses: float | None = None
-    max_fallbacks: float | None = None
-    max_residual: float | None = None
+    limits: tuple[tuple[str, float | None], ...]
+
+    def __init__(self, **limits: float | None) -> None:
+        unknown = sorted(set(limits) - set(CRITERIA))
+        if unknown:
+            raise TypeError(f"Criteria: unknown criteria {unknown}")
+        object.__setattr__(self, "limits", tuple(
+            (name, limits[name] if name in limits else entry.criterion.default
+             if entry.criterion is not None else None) for name, entry in CRITERIA.items()))
+        self.__post_init__()
+
+    def __post_init__(self) -> None:
+        for name, limit in self.limits:
+            if limit is not None and (isinstance(limit, bool)
+                                      or not isinstance(limit, int | float)
+                                      or math.isnan(limit)):
+                raise ValueError(f"Criteria.{name}: a number or None, got {limit!r}")
+
+    def __getattr__(self, name: str) -> float | None:
+        for key, limit in object.__getattribute__(self, "limits"):
+            if key == name:
+                return limit  # type: ignore[no-any-return]
+        raise AttributeError(f"Criteria has no criterion {name!r}")
+
+    def limit(self, criterion: str) -> float | None:
+        """The limit of ``criterion`` (None: off); KeyError for an unknown name."""
+        for key, limit in self.limits:
+            if key == criterion:
+                return limit
+        raise KeyError(criterion)
 
     @classmethod
     def names(cls) -> list[str]:
         """Valid criterion (override) names."""
-        return [f.name for f in fields(cls)]
+        return list(CRITERIA)
 
     @classmethod
     def from_overrides(cls, overrides: Mapping[str, Any] | None = None,
@@ -139,11 +133,11 @@ class Criteria:
             if problem is not None:
                 raise ValueError(f"criterion {key!r}: expected {problem}, got {value!r}")
             changes[key] = override_limit(value)
-        return replace(base, **changes)
+        return cls(**{**base.as_dict(), **changes})
 
     def as_dict(self) -> dict[str, float | None]:
-        """Field name -> limit (stored as ``Verdict.criteria``)."""
-        return asdict(self)
+        """Criterion name -> limit (stored as ``Verdict.criteria``)."""
+        return dict(self.limits)
 
     def check(self, metrics: Sequence[Measured], t_s: np.ndarray | None = None
               ) -> tuple[Failure, ...]:
@@ -151,8 +145,8 @@ class Criteria:
         module doc); ``t_s`` (T,) gives their times."""
         by_name = {m.name: m for m in metrics}
         failed: list[Failure] = []
-        for criterion, (name, bound) in CRITERIA_METRICS.items():
-            limit = getattr(self, criterion)
+        for criterion, limit in self.limits:
+            name, bound = CRITERIA_METRICS[criterion]
             found = by_name.get(name)
             if limit is None or found is None or math.isnan(found.metric.value):
                 continue

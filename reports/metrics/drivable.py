@@ -331,13 +331,10 @@ def _with_crossing(m: Measured, crossing: BoundaryCrossing | None) -> Measured:
 def drivable_metrics(ctx: RunContext, excess_m: FloatColumn) -> list[Measured]:
     """offroad_s, offroad_m, max_offroad_m, shoulder_s (see the module doc);
     ``excess_m`` is :func:`offroad_excess_series`."""
-    series = "series.offroad_excess_m"
     if ctx.n == 0 or not road_lanes(ctx):
         nan = float("nan")
-        return [measured("offroad_s", nan, "s", "safety", "lower"),
-                measured("offroad_m", nan, "m", "safety", "lower"),
-                measured("max_offroad_m", nan, "m", "safety", "lower", series=series),
-                measured("shoulder_s", nan, "s", "safety", "lower")]
+        return [measured(name, nan) for name in ("offroad_s", "offroad_m", "max_offroad_m",
+                                                 "shoulder_s")]
     bad = offroad_steps(excess_m)
     dt = ctx.durations_s
     speed = np.nan_to_num(ctx.record.trace.ego.speed_mps)
@@ -345,16 +342,14 @@ def drivable_metrics(ctx: RunContext, excess_m: FloatColumn) -> list[Measured]:
     crossing = (boundary_crossing(ctx, ego_drivable_area(ctx), row)
                 if row is not None and peak > 0 else None)
     shoulder = shoulder_steps(ctx)
-    offroad_s = measured("offroad_s", float(np.sum(dt[bad])), "s", "safety", "lower",
-                         increments=np.where(bad, dt, 0.0))
+    offroad_s = measured("offroad_s", float(np.sum(dt[bad])), increments=np.where(bad, dt, 0.0))
     # clamped at 0: inside the lanes the whole run has no worst corner to point at
     max_offroad = measured("max_offroad_m", max(0.0, peak) if row is not None else float("inf"),
-                           "m", "safety", "lower", worst_step=row if peak > 0 else None,
-                           series=series)
+                           worst_step=row if peak > 0 else None)
     return [
         _with_crossing(offroad_s, crossing if bool(np.any(bad)) else None),
-        measured("offroad_m", float(np.sum((speed * dt)[bad])), "m", "safety", "lower"),
+        measured("offroad_m", float(np.sum((speed * dt)[bad]))),
         _with_crossing(max_offroad, crossing),
-        measured("shoulder_s", float(np.sum(dt[shoulder])), "s", "safety", "lower",
+        measured("shoulder_s", float(np.sum(dt[shoulder])),
                  increments=np.where(shoulder, dt, 0.0)),
     ]

@@ -14,10 +14,12 @@ from typing import Any
 
 import numpy as np
 
+from reports.metrics.catalogue import REQUIRED_METRICS
 from reports.metrics.collisions import CollisionJudgement, collision_metrics, judge_collisions
 from reports.metrics.comfort import comfort_metrics, comfort_series, fallback_metrics
 from reports.metrics.context import build_context
 from reports.metrics.criteria import Criteria, steps_failure
+from reports.metrics.drac import drac_metrics, drac_series
 from reports.metrics.drivable import drivable_metrics, offroad_excess_series
 from reports.metrics.safety import ellipse_margin_series, safety_metrics
 from reports.metrics.timing import health_metrics, timing_metrics
@@ -27,15 +29,8 @@ from reports.metrics.values import Measured
 from reports.record import RunRecord, SeriesColumns, Verdict
 from reports.record.meta import END_OK
 
-# The metric names every verdict has, in report-column order (the others follow, sorted).
-REQUIRED_METRICS: tuple[str, ...] = (
-    "collision", "at_fault_collisions", "min_gap_m", "progress_m", "min_ttc_s",
-    "min_ellipse_margin", "offroad_s", "min_long_acc_mps2", "max_long_acc_mps2",
-    "max_abs_lat_acc_mps2", "max_abs_yaw_rate_radps", "max_abs_yaw_acc_radps2",
-    "max_abs_long_jerk_mps3", "max_abs_jerk_mps3", "rms_lat_dev_m",
-    "mean_speed_mps", "step_ms_p50", "step_ms_p99", "step_ms_max", "step_var_s2",
-    "deadline_misses", "residual_max", "fallbacks", "realtime_factor",
-)
+__all__ = ["REQUIRED_METRICS", "Evaluation", "criteria_for", "evaluate", "measure",
+           "measure_all"]
 
 
 @dataclass(frozen=True)
@@ -73,13 +68,15 @@ def measure_all(record: RunRecord) -> tuple[list[Measured], SeriesColumns, Colli
     ahead, behind = ttc_series(ctx, pairs, ahead=True), ttc_series(ctx, pairs, ahead=False)
     excess = offroad_excess_series(ctx)
     margin = ellipse_margin_series(ctx)
+    drac = drac_series(ctx, pairs)
     series = SeriesColumns(
         long_acc_mps2=comfort.long_acc_mps2, lat_acc_mps2=comfort.lat_acc_mps2,
         yaw_rate_radps=comfort.yaw_rate_radps, yaw_acc_radps2=comfort.yaw_acc_radps2,
         long_jerk_mps3=comfort.long_jerk_mps3, jerk_mps3=comfort.jerk_mps3,
-        ttc_s=ahead, ttc_rear_s=behind, offroad_excess_m=excess, ellipse_margin=margin)
+        ttc_s=ahead, ttc_rear_s=behind, offroad_excess_m=excess, ellipse_margin=margin,
+        drac_mps2=drac)
     collisions = judge_collisions(ctx)
-    found = (safety_metrics(ctx, ahead, behind, margin)
+    found = (safety_metrics(ctx, ahead, behind, margin) + drac_metrics(ctx, drac)
              + collision_metrics(ctx, collisions) + drivable_metrics(ctx, excess)
              + comfort_metrics(comfort) + tracking_metrics(ctx) + timing_metrics(ctx)
              + health_metrics(ctx)

@@ -3,7 +3,7 @@
 Every criterion in force (a limit ``L`` that is not None, a metric value ``v`` that is
 not NaN: exactly the criteria :meth:`reports.metrics.criteria.Criteria.check` tests)
 gives a *margin* ``rho_c``, normalised by the criterion's scale ``s_c``
-(:data:`SCALES`, in the criterion's unit)::
+(:data:`SCALES`, in the criterion's unit: the catalogue's ``Criterion.scale``)::
 
     bound 'max' (fails when v > L):   rho_c = (L - v) / s_c
     bound 'min' (fails when v < L):   rho_c = (v - L) / s_c
@@ -44,41 +44,22 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from reports.metrics.criteria import CRITERIA_METRICS
+from reports.metrics.catalogue import CRITERIA, CRITERIA_METRICS
 from reports.metrics.drivable import OFFROAD_TOLERANCE_M
 from reports.record import Verdict
 
 __all__ = ["CUMULATIVE", "DEFAULT_SCALE", "SCALES", "Margin", "Robustness", "margin_of",
            "robustness"]
 
-# criterion -> scale s_c in the criterion's unit. Safety: its natural unit (1 s of time to
-# collision, 1 m of gap), so that these margins follow the scenario (how close, how soon)
-# and guide a search. Comfort and progress: about a tenth of the default limit, so that
-# while the car cruises (accelerations near 0) their margins (~10) stay above the safety
-# margins instead of capping every quiet run at the same value.
-SCALES: dict[str, float] = {
-    "max_at_fault_collisions": 1.0,  # collisions [-]
-    "max_collision": 1.0,  # [-]
-    "max_offroad_s": 0.1,  # [s]
-    "min_ttc_s": 1.0,  # [s]
-    "min_progress_fraction": 0.05,  # [-]
-    "min_long_acc_mps2": 0.4,  # [m/s^2]
-    "max_long_acc_mps2": 0.25,  # [m/s^2]
-    "max_abs_lat_acc_mps2": 0.5,  # [m/s^2]
-    "max_abs_yaw_rate_radps": 0.1,  # [rad/s]
-    "max_abs_yaw_acc_radps2": 0.2,  # [rad/s^2]
-    "max_abs_long_jerk_mps3": 0.4,  # [m/s^3]
-    "max_abs_jerk_mps3": 0.8,  # [m/s^3]
-    "min_gap_m": 1.0,  # [m]
-    "min_ellipse_margin": 1.0,  # [-]
-    "max_shoulder_s": 1.0,  # [s]
-    "max_rms_lat_dev_m": 0.1,  # [m]
-    "max_final_abs_lat_dev_m": 0.1,  # [m]
-    "max_deadline_misses": 1.0,  # [-]
-    "max_fallbacks": 1.0,  # [-]
-    "max_residual": 10.0,  # [-]
-}
-# a criterion added later without a scale here: max(|L|, 1) in its unit
+# criterion -> scale s_c in the criterion's unit: its catalogue entry's ``Criterion.scale``.
+# Safety: its natural unit (1 s of time to collision, 1 m of gap), so that these margins
+# follow the scenario (how close, how soon) and guide a search. Comfort and progress:
+# about a tenth of the default limit, so that while the car cruises (accelerations near
+# 0) their margins (~10) stay above the safety margins instead of capping every quiet
+# run at the same value.
+SCALES: dict[str, float] = {c: s.criterion.scale for c, s in CRITERIA.items()
+                            if s.criterion is not None}
+# a criterion the catalogue does not know (a stored run's): max(|L|, 1) in its unit
 DEFAULT_SCALE = 1.0
 CUMULATIVE = ("max_at_fault_collisions", "max_collision", "max_offroad_s", "max_shoulder_s",
               "max_deadline_misses", "max_fallbacks")

@@ -75,23 +75,20 @@ def ellipse_margin_series(ctx: RunContext) -> FloatColumn:
 def _collision_flags(ctx: RunContext) -> list[Measured]:
     safety = ctx.record.trace.safety
     return [
-        measured("geom_collision_steps", float(np.sum(safety.geom_collision)), "-", "safety",
-                 "lower"),
-        measured("sumo_collision_steps", float(np.sum(safety.sumo_collision)), "-", "safety",
-                 "none"),
-        measured("sumo_collisions_reported", float(len(ctx.record.outcome.sumo_collisions)),
-                 "-", "safety", "none"),
+        measured("geom_collision_steps", float(np.sum(safety.geom_collision))),
+        measured("sumo_collision_steps", float(np.sum(safety.sumo_collision))),
+        measured("sumo_collisions_reported", float(len(ctx.record.outcome.sumo_collisions))),
     ]
 
 
-def _min_of(name: str, values: FloatColumn, n: int, unit: str, series: str) -> Measured:
+def _min_of(name: str, values: FloatColumn, n: int) -> Measured:
     """The minimum of a per-row series where +inf means 'no conflict' (NaN without rows)."""
     if n == 0:
-        return measured(name, float("nan"), unit, "safety", "higher", series=series)
+        return measured(name, float("nan"))
     value, row = extreme(values, "min")
     if row is None:  # nothing finite: never close to anything
-        return measured(name, float("inf"), unit, "safety", "higher", series=series)
-    return measured(name, value, unit, "safety", "higher", worst_step=row, series=series)
+        return measured(name, float("inf"))
+    return measured(name, value, worst_step=row)
 
 
 def _ssm_metrics(ctx: RunContext) -> list[Measured]:
@@ -102,14 +99,12 @@ def _ssm_metrics(ctx: RunContext) -> list[Measured]:
     nan = float("nan")
     unreadable = ssm.error is not None
     return [
-        measured("ssm_ttc_min_s", value, "s", "safety", "higher", worst_step=row,
-                 series="safety.ssm_ttc_s"),
-        measured("sumo_ssm_conflicts", nan if unreadable else float(ssm.conflicts), "-",
-                 "safety", "lower"),
+        measured("ssm_ttc_min_s", value, worst_step=row),
+        measured("sumo_ssm_conflicts", nan if unreadable else float(ssm.conflicts)),
         measured("sumo_ssm_min_ttc_s", nan if unreadable or ssm.min_ttc_s is None
-                 else ssm.min_ttc_s, "s", "safety", "higher"),
+                 else ssm.min_ttc_s),
         measured("sumo_ssm_max_drac_mps2", nan if unreadable or ssm.max_drac_mps2 is None
-                 else ssm.max_drac_mps2, "m/s^2", "safety", "lower"),
+                 else ssm.max_drac_mps2),
     ]
 
 
@@ -122,10 +117,9 @@ def safety_metrics(ctx: RunContext, ttc_ahead_s: FloatColumn, ttc_behind_s: Floa
     margin, margin_row = extreme(ellipse_margin, "min")
     out = _collision_flags(ctx)
     out += [
-        _min_of("min_gap_m", ctx.record.trace.safety.min_gap_m, n, "m", "safety.min_gap_m"),
-        _min_of("min_ttc_s", ttc_ahead_s, n, "s", "series.ttc_s"),
-        _min_of("min_ttc_rear_s", ttc_behind_s, n, "s", "series.ttc_rear_s"),
-        measured("min_ellipse_margin", margin, "-", "safety", "higher", worst_step=margin_row,
-                 series="series.ellipse_margin"),
+        _min_of("min_gap_m", ctx.record.trace.safety.min_gap_m, n),
+        _min_of("min_ttc_s", ttc_ahead_s, n),
+        _min_of("min_ttc_rear_s", ttc_behind_s, n),
+        measured("min_ellipse_margin", margin, worst_step=margin_row),
     ]
     return out + _ssm_metrics(ctx)

@@ -20,12 +20,11 @@ import math
 
 import numpy as np
 
+from reports.metrics.catalogue import LOOPS, STATS, var_name
 from reports.metrics.context import RunContext
 from reports.metrics.values import Measured, extreme, measured
 from reports.record import Trace
 from reports.record.columns import FloatColumn
-
-LOOPS: tuple[str, ...] = ("step", "outer", "inner", "obstacles", "sumo")
 
 
 def loop_column_s(trace: Trace, loop: str) -> FloatColumn:
@@ -43,14 +42,9 @@ def loop_times_s(trace: Trace, loop: str) -> FloatColumn:
     return out
 
 
-def _var_name(loop: str) -> str:
-    return "step_var_s2" if loop == "step" else f"{loop}_step_var_s2"
-
-
 def loop_stats(times_s: np.ndarray, loop: str) -> list[Measured]:
     """p50/p95/p99/mean/max [ms] and variance [s²] of a sample of times [s]."""
-    names = [f"{loop}_ms_p50", f"{loop}_ms_p95", f"{loop}_ms_p99", f"{loop}_ms_mean",
-             f"{loop}_ms_max"]
+    names = [f"{loop}_ms_{stat}" for stat in STATS]
     if times_s.size == 0:
         values = [math.nan] * 5
         var = math.nan
@@ -59,9 +53,8 @@ def loop_stats(times_s: np.ndarray, loop: str) -> list[Measured]:
         values = [float(p50), float(p95), float(p99), float(times_s.mean() * 1e3),
                   float(times_s.max() * 1e3)]
         var = float(times_s.var())
-    out = [measured(name, value, "ms", "timing", "lower") for name, value in zip(
-        names, values, strict=True)]
-    return out + [measured(_var_name(loop), var, "s^2", "timing", "lower")]
+    out = [measured(name, value) for name, value in zip(names, values, strict=True)]
+    return out + [measured(var_name(loop), var)]
 
 
 def _deadline_metrics(ctx: RunContext) -> list[Measured]:
@@ -74,18 +67,16 @@ def _deadline_metrics(ctx: RunContext) -> list[Measured]:
     else:
         misses, increments = math.nan, None
     frac = misses / ctx.n if ctx.n else math.nan
-    return [measured("deadline_misses", misses, "-", "timing", "lower", increments=increments),
-            measured("deadline_miss_frac", frac, "-", "timing", "lower")]
+    return [measured("deadline_misses", misses, increments=increments),
+            measured("deadline_miss_frac", frac)]
 
 
 def _run_clock_metrics(ctx: RunContext) -> list[Measured]:
     outcome = ctx.record.outcome
     sim, wall = float(outcome.sim_time_s), float(outcome.wall_s)
     rtf = sim / wall if math.isfinite(wall) and wall > 0 else math.nan
-    return [measured("control_period_ms", ctx.period_s * 1e3, "ms", "health", "none"),
-            measured("sim_time_s", sim, "s", "health", "none"),
-            measured("wall_s", wall, "s", "timing", "lower"),
-            measured("realtime_factor", rtf, "-", "timing", "higher")]
+    return [measured("control_period_ms", ctx.period_s * 1e3), measured("sim_time_s", sim),
+            measured("wall_s", wall), measured("realtime_factor", rtf)]
 
 
 def timing_metrics(ctx: RunContext) -> list[Measured]:
@@ -105,12 +96,9 @@ def health_metrics(ctx: RunContext) -> list[Measured]:
     fallback = np.asarray(ctrl.fallback, dtype=bool)
     guards = np.maximum(np.asarray(ctrl.guard_fired, dtype=np.float64), 0.0)
     return [
-        measured("residual_max", res_max, "-", "health", "lower", worst_step=res_row,
-                 series="controller.residual"),
-        measured("residual_final", float(finite[-1]) if finite.size else math.nan, "-",
-                 "health", "lower"),
-        measured("fallbacks", float(np.sum(fallback)), "-", "health", "lower",
-                 increments=fallback.astype(np.float64)),
-        measured("guards", float(np.sum(guards)), "-", "health", "lower"),
-        measured("steps", float(ctx.n), "-", "health", "none"),
+        measured("residual_max", res_max, worst_step=res_row),
+        measured("residual_final", float(finite[-1]) if finite.size else math.nan),
+        measured("fallbacks", float(np.sum(fallback)), increments=fallback.astype(np.float64)),
+        measured("guards", float(np.sum(guards))),
+        measured("steps", float(ctx.n)),
     ]

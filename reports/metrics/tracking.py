@@ -78,14 +78,11 @@ def expected_progress_m(ctx: RunContext) -> float:
 def _final_abs_lat_dev(ctx: RunContext) -> Measured:
     lat = ctx.record.trace.ego.lat_dev_m
     t = ctx.t_s
-    series = "ego.lat_dev_m"
     if lat.size == 0:
-        return measured("final_abs_lat_dev_m", math.nan, "m", "tracking", "lower",
-                        series=series)
+        return measured("final_abs_lat_dev_m", math.nan)
     window = np.where(t >= t[-1] - FINAL_WINDOW_S, np.abs(lat), np.nan)
     value, row = extreme(window, "max")
-    return measured("final_abs_lat_dev_m", value, "m", "tracking", "lower", worst_step=row,
-                    series=series)
+    return measured("final_abs_lat_dev_m", value, worst_step=row)
 
 
 def _lat_dev_metrics(ctx: RunContext) -> list[Measured]:
@@ -95,12 +92,10 @@ def _lat_dev_metrics(ctx: RunContext) -> list[Measured]:
     max_dev, dev_row = extreme(np.abs(ego.lat_dev_m), "max")
     max_head, head_row = extreme(np.abs(ego.heading_err_rad), "max")
     return [
-        measured("rms_lat_dev_m", rms, "m", "tracking", "lower"),
-        measured("max_abs_lat_dev_m", max_dev, "m", "tracking", "lower", worst_step=dev_row,
-                 series="ego.lat_dev_m"),
+        measured("rms_lat_dev_m", rms),
+        measured("max_abs_lat_dev_m", max_dev, worst_step=dev_row),
         _final_abs_lat_dev(ctx),
-        measured("max_abs_heading_err_rad", max_head, "rad", "tracking", "lower",
-                 worst_step=head_row, series="ego.heading_err_rad"),
+        measured("max_abs_heading_err_rad", max_head, worst_step=head_row),
     ]
 
 
@@ -114,9 +109,9 @@ def _speed_metrics(ctx: RunContext) -> list[Measured]:
     target = recorded if np.any(np.isfinite(recorded)) \
         else np.full(ctx.n, ctx.record.info.target_speed_mps)
     return [
-        measured("mean_speed_mps", _mean(speed), "m/s", "tracking", "higher"),
-        measured("mean_target_speed_mps", mean_target, "m/s", "tracking", "none"),
-        measured("mean_speed_error_mps", _mean(speed - target), "m/s", "tracking", "none"),
+        measured("mean_speed_mps", _mean(speed)),
+        measured("mean_target_speed_mps", mean_target),
+        measured("mean_speed_error_mps", _mean(speed - target)),
     ]
 
 
@@ -129,10 +124,10 @@ def _progress_metrics(ctx: RunContext) -> list[Measured]:
     fraction = progress / remaining if math.isfinite(remaining) and remaining > 0 \
         else float("nan")
     return [
-        measured("progress_m", progress, "m", "tracking", "higher"),
-        measured("expected_progress_m", expected, "m", "tracking", "none"),
-        measured("progress_ratio", ratio, "-", "tracking", "higher"),
-        measured("route_fraction", fraction, "-", "tracking", "higher"),
+        measured("progress_m", progress),
+        measured("expected_progress_m", expected),
+        measured("progress_ratio", ratio),
+        measured("route_fraction", fraction),
     ]
 
 

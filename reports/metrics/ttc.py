@@ -125,18 +125,30 @@ def swept_box_ttc(corners_a: np.ndarray, vel_a: np.ndarray, corners_b: np.ndarra
 class TtcPairs:
     """TTC of every (step, neighbour) row matched to a trace row, (P,) each: ``row``
     (trace row), ``ttc_s`` [s], ``ahead`` (neighbour centre not behind the ego's),
-    ``ego_moving``, ``on_road`` (predicted along the road; False: in straight lines)."""
+    ``ego_moving``, ``on_road`` (predicted along the road; False: in straight lines).
+
+    The same pair seen along the ego's heading h in the frame it is predicted in
+    (:func:`pair_geometry`): ``gap_m`` [m], the neighbour's rearmost corner minus the
+    ego's foremost corner along h (bumper to bumper; <= 0 once they overlap along h),
+    ``closing_mps`` [m/s], (v_ego − v_neighbour)·h (> 0: the ego closes in), and
+    ``in_path``, whether the boxes overlap across h (the neighbour is in the ego's
+    path). On the road both are converted from arc length to metres at the ego's
+    offset (times 1 − κ d of the ego's centre)."""
 
     row: IntColumn
     ttc_s: FloatColumn
     ahead: BoolColumn
     ego_moving: BoolColumn
     on_road: BoolColumn
+    gap_m: FloatColumn
+    closing_mps: FloatColumn
+    in_path: BoolColumn
 
     @classmethod
     def empty(cls) -> TtcPairs:
-        return cls(np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=bool),
-                   np.zeros(0, dtype=bool), np.zeros(0, dtype=bool))
+        none = np.zeros(0, dtype=bool)
+        return cls(np.zeros(0, dtype=np.int64), np.zeros(0), none, none, none, np.zeros(0),
+                   np.zeros(0), none)
 
 
 @dataclass(frozen=True)
@@ -267,8 +279,32 @@ def ttc_pairs(ctx: RunContext, params: TtcParams = DEFAULT_TTC) -> TtcPairs:
     if np.any(replayed):
         ahead = np.where(replayed, ahead & _wholly_ahead(ego_c, nb_c, hx, hy), ahead)
     speed = np.hypot(ctx.vel_x_mps[rows], ctx.vel_y_mps[rows])
+    gap, closing, in_path = pair_geometry(ego_b, nb_b, ego_c, nb_c)
     return TtcPairs(row=rows, ttc_s=ttc, ahead=ahead,
-                    ego_moving=speed >= params.min_ego_speed_mps, on_road=road)
+                    ego_moving=speed >= params.min_ego_speed_mps, on_road=road,
+                    gap_m=np.where(finite_pose, gap, np.nan), closing_mps=closing,
+                    in_path=in_path & finite_pose)
+
+
+def pair_geometry(ego: Boxes, nb: Boxes, ego_corners: np.ndarray, nb_corners: np.ndarray
+                  ) -> tuple[FloatColumn, FloatColumn, BoolColumn]:
+    """(gap_m, closing_mps, in_path) of P pairs in one frame (see :class:`TtcPairs`):
+    with h = (cos ψ_ego, sin ψ_ego) and n = (−sin ψ_ego, cos ψ_ego) in that frame,
+    gap = min(nb corners · h) − max(ego corners · h), closing = (v_ego − v_nb) · h,
+    in_path = the intervals of the corners · n overlap; gap and closing divided by the
+    ego's stretch (1 in the world frame, 1 / (1 − κ d) on the road)."""
+    hx, hy = np.cos(ego.heading), np.sin(ego.heading)
+
+    def along(c: np.ndarray, ux: FloatColumn, uy: FloatColumn) -> np.ndarray:
+        out: np.ndarray = c[..., 0] * ux[:, None] + c[..., 1] * uy[:, None]
+        return out
+
+    gap = np.min(along(nb_corners, hx, hy), axis=1) - np.max(along(ego_corners, hx, hy), axis=1)
+    closing = (ego.vx - nb.vx) * hx + (ego.vy - nb.vy) * hy
+    ego_n, nb_n = along(ego_corners, -hy, hx), along(nb_corners, -hy, hx)
+    in_path: BoolColumn = (np.min(nb_n, axis=1) < np.max(ego_n, axis=1)) \
+        & (np.min(ego_n, axis=1) < np.max(nb_n, axis=1))
+    return gap / ego.stretch, closing / ego.stretch, in_path
 
 
 def _wholly_ahead(ego_corners: np.ndarray, nb_corners: np.ndarray, hx: FloatColumn,

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reports.metrics.catalogue import find, spec
 from reports.record import MetricValue, SeriesColumns, Trace
 from reports.record.columns import TRACE_GROUPS, FloatColumn
 
@@ -38,13 +39,22 @@ class Measured:
         return self.metric.name
 
 
-def measured(name: str, value: float, unit: str, kind: str, better: str = "none", *,
-             worst_step: int | None = None, series: str = "",
+def measured(name: str, value: float, unit: str | None = None, kind: str | None = None,
+             better: str | None = None, *, worst_step: int | None = None,
              increments: FloatColumn | None = None) -> Measured:
-    """A :class:`Measured` (``value`` coerced to float)."""
-    return Measured(MetricValue(name=name, value=float(value), unit=unit, kind=kind,
-                                better=better, worst_step=worst_step, series=series),
-                    increments)
+    """A :class:`Measured` (``value`` coerced to float) carrying the unit, kind,
+    direction and series of its catalogue entry (:mod:`reports.metrics.catalogue`);
+    KeyError for a name the catalogue does not know. The metric modules give only the
+    name; ``unit``/``kind``/``better``, when given, replace the entry's (a synthetic
+    value in a test; ``better`` 'none' and no series for a name without an entry)."""
+    entry = spec(name) if unit is None else find(name)
+    return Measured(MetricValue(
+        name=name, value=float(value), unit=unit if unit is not None else entry.unit
+        if entry is not None else "-",
+        kind=kind if kind is not None else entry.kind if entry is not None else "safety",
+        better=better if better is not None else entry.better if entry is not None
+        else "none", worst_step=worst_step, series=entry.series if entry is not None else ""),
+        increments)
 
 
 def extreme(values: np.ndarray, how: str) -> tuple[float, int | None]:

@@ -334,6 +334,8 @@ class SeriesColumns(ColumnGroup):
     ttc_rear_s: FloatColumn = col("s", "time to collision with vehicles behind (inf: none)")
     offroad_excess_m: FloatColumn = col("m", "largest ego corner excess beyond drivable lanes")
     ellipse_margin: FloatColumn = col("-", "min ellipse value of the ego CG (< 0 inside)")
+    drac_mps2: FloatColumn = col("m/s^2", "deceleration to avoid a crash with the vehicle "
+                                 "ahead in the ego's path (0: none or not closing)")
 
     def to_frame(self) -> pd.DataFrame:
         import pandas as pd

@@ -4,11 +4,16 @@
                      behind (``/safety/ttc_s/{ahead,behind}``; "no conflict", +∞, is
                      drawn at :data:`TTC_CAP_S` so the panel is never empty), the
                      verdict's minimum (``/safety/ttc_s/verdict_min``), gap, collision
-                     flag, off-road excess and ellipse margin (the verdict's series)
+                     flag, off-road excess, ellipse margin and DRAC ahead
+                     (``/safety/drac_mps2``; the verdict's series)
+verdict series       every catalogue entry whose ``Drawing`` names a Rerun path
+                     (:mod:`reports.metrics.catalogue`), at that path with its label and
+                     colour: :func:`log_metric_series`
 limits               every criterion in force is a constant series next to its signal
                      (``.../limit``, ``.../limit_min``, ``.../limit_max``; a bound on an
                      absolute value as ``limit_pos`` and ``limit_neg``), from the
-                     verdict's ``criteria``: :data:`LIMITS`
+                     verdict's ``criteria``: :data:`LIMITS`, the catalogue's criteria
+                     with a ``line``
 ``/comfort/...``     body accelerations as recorded and as the verdict smoothed them,
                      jerks, yaw rate and yaw acceleration (the verdict's series)
 ``/controller/...``  speed and set-point, lateral deviation, heading error, steering and
@@ -24,6 +29,9 @@ from __future__ import annotations
 import numpy as np
 import rerun as rr
 
+from reports.metrics.catalogue import CATALOGUE, CRITERIA
+from reports.metrics.catalogue import TTC_CAP_S as CAP_S
+from reports.metrics.values import signal
 from suite.rerun.paths import CONTROLLER
 from suite.rerun.stream import Colour, RunLog, time_columns
 
@@ -37,25 +45,13 @@ RED = (255, 60, 60, 255)
 GREEN = (60, 230, 120, 255)
 PALETTE = (BLUE, ORANGE, GREEN, PURPLE, MAGENTA, GREY)
 LIMIT = (255, 80, 80, 160)
-TTC_CAP_S = 10.0  # +inf TTC ("no conflict") is drawn here
+TTC_CAP_S = CAP_S  # +inf TTC ("no conflict") is drawn here
 
-# criterion -> (entity path of its limit line(s), label, symmetric: ±limit)
+# criterion -> (entity path of its limit line(s), label, symmetric: ±limit): the
+# catalogue's criteria that have a line (reports.metrics.catalogue)
 LIMITS: dict[str, tuple[str, str, bool]] = {
-    "min_ttc_s": ("/safety/ttc_s/limit", "min TTC limit [s]", False),
-    "min_gap_m": ("/safety/min_gap_m/limit", "min gap limit [m]", False),
-    "min_ellipse_margin": ("/safety/ellipse_margin/limit", "ellipse margin limit", False),
-    "min_long_acc_mps2": ("/comfort/accel_mps2/limit_min", "long acc limit [m/s²]", False),
-    "max_long_acc_mps2": ("/comfort/accel_mps2/limit_max", "long acc limit [m/s²]", False),
-    "max_abs_lat_acc_mps2": ("/comfort/accel_mps2/lat_limit", "|lat acc| limit [m/s²]", True),
-    "max_abs_long_jerk_mps3": ("/comfort/jerk_mps3/long_limit", "|long jerk| limit [m/s³]",
-                               True),
-    "max_abs_jerk_mps3": ("/comfort/jerk_mps3/total_limit", "|jerk| limit [m/s³]", False),
-    "max_abs_yaw_rate_radps": ("/comfort/yaw_rate_radps/limit", "|yaw rate| limit [rad/s]",
-                               True),
-    "max_abs_yaw_acc_radps2": ("/comfort/yaw_acc_radps2/limit", "|yaw acc| limit [rad/s²]",
-                               True),
-    "max_residual": ("/controller/residual/limit", "residual limit", False),
-}
+    name: (s.criterion.line, s.criterion.line_label, s.criterion.symmetric)
+    for name, s in CRITERIA.items() if s.criterion is not None and s.criterion.line}
 
 
 def _constant(log: RunLog, path: str, value: float, name: str, color: Colour) -> None:
@@ -102,36 +98,37 @@ def log_safety(log: RunLog) -> None:
       "SUMO's collision report (lane-based)", (255, 120, 120, 255))
     if series is None:
         return
-    s("/safety/ttc_s/ahead", _capped_ttc(series.ttc_s),
-      f"TTC ahead [s] (verdict; none = {TTC_CAP_S:g})", ORANGE)
-    s("/safety/ttc_s/behind", _capped_ttc(series.ttc_rear_s),
-      f"TTC behind [s] (verdict; none = {TTC_CAP_S:g})", PURPLE)
     verdict = log.record.verdict
     if verdict is not None:
         value = verdict.value("min_ttc_s")
         shown = "∞ (no conflict)" if np.isposinf(value) else f"{value:.3g} s"
         _constant(log, "/safety/ttc_s/verdict_min", float(_capped_ttc(np.array([value]))[0]),
                   f"min TTC (verdict) = {shown}", (255, 200, 120, 255))
-    s("/safety/offroad_excess_m", series.offroad_excess_m, "corner beyond the lanes [m]",
-      ORANGE)
-    s("/safety/ellipse_margin", series.ellipse_margin, "ellipse margin (< 0 inside)", MAGENTA)
+
+
+def log_metric_series(log: RunLog) -> None:
+    """The verdict's series of every catalogue entry whose drawing has a Rerun path,
+    at that path with its label and colour (+inf and values above a cap drawn at it)."""
+    record = log.record
+    if record.series is None:
+        return
+    for entry in CATALOGUE:
+        d = entry.drawing
+        if d is None or not d.rerun:
+            continue
+        values = signal(entry.drawn_series, record.trace, record.series)
+        if values is None:
+            continue
+        if d.cap is not None:
+            values = np.minimum(values, d.cap)
+        log.scalar(d.rerun, values, d.rerun_label, d.colour)
 
 
 def log_comfort(log: RunLog) -> None:
-    ego, series = log.record.trace.ego, log.record.series
+    ego = log.record.trace.ego
     s = log.scalar
     s("/comfort/accel_mps2/long", ego.long_acc_mps2, "long acc [m/s²]", BLUE)
     s("/comfort/accel_mps2/lat", ego.lat_acc_mps2, "lat acc [m/s²]", ORANGE)
-    if series is None:
-        return
-    s("/comfort/accel_mps2/long_smoothed", series.long_acc_mps2,
-      "long acc, smoothed (verdict) [m/s²]", (40, 90, 200, 255))
-    s("/comfort/accel_mps2/lat_smoothed", series.lat_acc_mps2,
-      "lat acc, smoothed (verdict) [m/s²]", (200, 100, 30, 255))
-    s("/comfort/jerk_mps3/long", series.long_jerk_mps3, "long jerk [m/s³]", BLUE)
-    s("/comfort/jerk_mps3/total", series.jerk_mps3, "|jerk| [m/s³]", ORANGE)
-    s("/comfort/yaw_rate_radps", series.yaw_rate_radps, "yaw rate [rad/s]", PURPLE)
-    s("/comfort/yaw_acc_radps2", series.yaw_acc_radps2, "yaw acc [rad/s²]", MAGENTA)
 
 
 def _optional(log: RunLog, name: str) -> np.ndarray | None:
@@ -196,6 +193,7 @@ def log_scalars(log: RunLog) -> None:
         return
     log_safety(log)
     log_comfort(log)
+    log_metric_series(log)
     log_controller(log)
     log_timing(log)
     log_limits(log)
