@@ -12,7 +12,16 @@ import pytest
 
 from controllers.behaviour.decision import EgoShape, LaneBehaviour
 from controllers.behaviour.protocol import CruiseBehaviour
-from controllers.behaviour.types import SIDE_LEFT, LaneContext, LaneSlot, ObstaclePolicy, Traffic
+from controllers.behaviour.types import (
+    SIDE_LEFT,
+    Decision,
+    EgoFrenet,
+    LaneContext,
+    LaneSlot,
+    ObstaclePolicy,
+    Obstacles,
+    Traffic,
+)
 from controllers.path.frenet import FrenetPath
 from controllers.plant.vehicle_model import SingleTrackPlant, VehicleParams
 from controllers.protocol import Command, Observation, ScenarioContext, StepDiagnostics
@@ -196,3 +205,86 @@ def test_diagnostics_of_another_type_than_declared_fail_loudly() -> None:
     st, _ = stages(ScriptedWorld(no_traffic), Liar(), n_steps=5)
     with pytest.raises(TypeError, match="declared diagnostics ProbeDiagnostics"):
         run_loop(st, 5)
+
+
+def moving_at(x0_m: float, speed_mps: float) -> Callable[[float], Traffic]:
+    """One car on the lane's centre line at constant speed: x = x0 + v t."""
+    def traffic(t_s: float) -> Traffic:
+        return Traffic(("car0",), np.array([x0_m + speed_mps * t_s]), np.zeros(1),
+                       np.zeros(1), np.array([speed_mps]), np.array([4.8]), np.array([1.9]),
+                       np.zeros(1, dtype=np.int64), ("e0",), np.zeros(1, dtype=bool))
+    return traffic
+
+
+class EveryMthFresh(ScriptedWorld):
+    """A multi-rate world: its own state is new every ``m``-th step only (as SUMO at 10 Hz
+    under a 50 Hz loop); the other scenes are its exact traffic marked not fresh."""
+
+    def __init__(self, traffic: Callable[[float], Traffic], m: int) -> None:
+        super().__init__(traffic)
+        self.m = m
+        self.k = 0
+
+    def step(self, ego_pose: EgoPose | None) -> Scene:
+        self.k += 1
+        scene = super().step(ego_pose)
+        return Scene(scene.t_s, scene.traffic, scene.ego, fresh=self.k % self.m == 0)
+
+
+class CountingBehaviour:
+    """A behaviour that counts its decisions and records the time of each."""
+
+    def __init__(self, inner: LaneBehaviour) -> None:
+        self.inner = inner
+        self.times_s: list[float] = []
+
+    def decide(self, ego: EgoFrenet, traffic: Traffic, lanes: LaneContext,
+               set_speed_mps: float) -> Decision:
+        self.times_s.append(ego.t_s)
+        return self.inner.decide(ego, traffic, lanes, set_speed_mps)
+
+
+def _observed_obstacles(m: int, n_steps: int) -> tuple[list[Observation], list[float]]:
+    controller = ProbeController(ObstaclePolicy())
+    world = EveryMthFresh(moving_at(160.0, 15.0), m)
+    st, _ = stages(world, controller, n_steps=n_steps)
+    counting = CountingBehaviour(st.behaviour)  # type: ignore[arg-type]
+    st.behaviour = counting
+    assert run_loop(st, n_steps) == DURATION
+    return controller.observations, counting.times_s
+
+
+def test_the_behaviour_decides_on_fresh_scenes_and_its_obstacles_move_between() -> None:
+    n = 50
+    every, decided_every = _observed_obstacles(1, n)
+    fifth, decided_fifth = _observed_obstacles(5, n)
+    # the start's scene and every 5th step's: steps 0, 5, 10, ... decide
+    assert decided_every == pytest.approx([k * DT for k in range(n)])
+    assert decided_fifth == pytest.approx([k * DT for k in range(0, n, 5)])
+    # Between decisions the controller sees the last decision's ellipses moved by their
+    # own constant velocity; for a car at constant speed on a straight road that is
+    # where deciding afresh puts them (the deciding-every-step run, an independent path).
+    for a, b in zip(every, fifth, strict=True):
+        assert a.obstacles.count == b.obstacles.count == 1
+        assert b.obstacles.s_m == pytest.approx(a.obstacles.s_m, abs=1e-9)
+        assert b.obstacles.y_m == pytest.approx(a.obstacles.y_m, abs=1e-9)
+        assert b.obstacles.vehicle_ids == ("car0",)
+    # and it does move: 15 m/s x 0.08 s from a decision to the step before the next
+    assert fifth[4].obstacles.s_m[0] - fifth[0].obstacles.s_m[0] == pytest.approx(15.0 * 0.08)
+
+
+def test_between_decisions_an_ellipse_the_ego_moved_into_is_narrowed() -> None:
+    """A car alongside: its ellipse (A 10 m, B 2.2 m) 2.4 m left of the ego's CG leaves it
+    outside when decided; 0.08 s later the ego has moved 0.4 m toward it, inside, and the
+    ellipse handed to the controller is narrowed across (B) to put the ego at 1.05."""
+    obstacles = Obstacles(s_m=np.array([100.0]), y_m=np.array([2.4]), speed_s_mps=np.zeros(1),
+                          speed_y_mps=np.zeros(1), semi_a_m=np.array([10.0]),
+                          semi_b_m=np.array([2.2]), vehicle_ids=("car",),
+                          half_length_m=np.array([4.7]))
+    decision = Decision(obstacles=obstacles)
+    kept = decision.ahead(0.08, 100.0, 0.0).obstacles  # outside: untouched
+    assert (kept.semi_a_m[0], kept.semi_b_m[0]) == (10.0, 2.2)
+    moved = decision.ahead(0.08, 100.0, 0.4).obstacles
+    assert moved.semi_a_m[0] == 10.0
+    assert moved.semi_b_m[0] == pytest.approx(2.0 / math.sqrt(1.05))
+    assert (2.0 / moved.semi_b_m[0]) ** 2 == pytest.approx(1.05)

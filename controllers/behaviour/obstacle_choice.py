@@ -24,6 +24,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
+from controllers.behaviour.ellipse_fit import leave_ego_outside
 from controllers.behaviour.ellipses import ellipse_semi_axes, offset_centre_y
 from controllers.behaviour.perception import LaneScene
 from controllers.behaviour.types import ObstaclePolicy, Obstacles, Side
@@ -102,7 +103,7 @@ def plan_ellipses(sc: LaneScene, order: IntpArray, plan: LanePlan, side: int,
             # ego's offset) no lateral gradient that would push the ego sideways
             # while it waits at standstill distance (dc/dy = 2 dy / B²).
             semi_b[k] = max(semi_b[k], _FOLLOW_WALL_LANES * lane_width_m)
-        semi_a[k], semi_b[k] = _leave_ego_outside(
+        semi_a[k], semi_b[k] = leave_ego_outside(
             float(sc.ego.s_m - fn.s_m[i]), float(sc.ego.lat_m - y[k]), float(semi_a[k]),
             float(semi_b[k]), 0.5 * float(fn.length_m[i] + ego_length_m))
     return Obstacles(s_m=fn.s_m[order].copy(), y_m=y, speed_s_mps=fn.v_s_mps[order].copy(),
@@ -150,18 +151,3 @@ def _select_obstacles(ds_m: npt.NDArray[np.float64], y_m: npt.NDArray[np.float64
                             second[np.argsort(dist[second], kind="mergesort")]))
     return order[:max_obstacles].astype(np.intp)
 
-
-def _leave_ego_outside(ds_m: float, dy_m: float, semi_a_m: float, semi_b_m: float,
-                       min_a_m: float) -> tuple[float, float]:
-    """Semi-axes (A, B) such that the ego's CG at (ds, dy) from the centre is outside
-    (ellipse value >= 0.05): where the barrier is undefined the planner fails. The axis
-    along which the ego is deeper shrinks (A: following a car at standstill distance;
-    B: a car alongside in the next lane), A not below the box-sum half length."""
-    along, across = (ds_m / semi_a_m) ** 2, (dy_m / semi_b_m) ** 2
-    if along + across >= 1.05:
-        return semi_a_m, semi_b_m
-    if along >= across and across < 1.0:
-        a = abs(ds_m) / math.sqrt(max(1.05 - across, 1e-3))
-        return max(a, min_a_m), semi_b_m
-    b = abs(dy_m) / math.sqrt(max(1.05 - along, 1e-3))
-    return semi_a_m, max(b, 0.5)

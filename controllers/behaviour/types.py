@@ -15,11 +15,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import IntEnum, StrEnum
 
 import numpy as np
 import numpy.typing as npt
+
+from controllers.behaviour.ellipse_fit import leave_ego_outside
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -317,6 +319,33 @@ class Obstacles:
     def count(self) -> int:
         return int(self.s_m.shape[0])
 
+    def ahead(self, tau_s: float) -> Obstacles:
+        """The same ellipses ``tau_s`` [s] later by their own constant-velocity
+        prediction: centres s + speed_s tau, y + speed_y tau; speeds, semi-axes, ids and
+        half lengths held (the controller's prediction over its horizon, started tau
+        later). ``tau_s = 0`` or no obstacle: ``self``."""
+        if tau_s == 0.0 or self.count == 0:
+            return self
+        return Obstacles(self.s_m + self.speed_s_mps * tau_s,
+                         self.y_m + self.speed_y_mps * tau_s, self.speed_s_mps,
+                         self.speed_y_mps, self.semi_a_m, self.semi_b_m, self.vehicle_ids,
+                         self.half_length_m)
+
+    def around_ego(self, ego_s_m: float, ego_lat_m: float) -> Obstacles:
+        """The same ellipses with every one that would contain the ego's CG at
+        (``ego_s_m``, ``ego_lat_m``) [m] narrowed to leave it outside
+        (:func:`controllers.behaviour.ellipse_fit.leave_ego_outside`; A not below the
+        box-sum half length where known); ``self`` when none does."""
+        a, b = self.semi_a_m.copy(), self.semi_b_m.copy()
+        known = self.half_length_m.shape[0] == self.count
+        for k in range(self.count):
+            a[k], b[k] = leave_ego_outside(
+                ego_s_m - float(self.s_m[k]), ego_lat_m - float(self.y_m[k]), float(a[k]),
+                float(b[k]), float(self.half_length_m[k]) if known else 0.0)
+        if np.array_equal(a, self.semi_a_m) and np.array_equal(b, self.semi_b_m):
+            return self
+        return replace(self, semi_a_m=a, semi_b_m=b)
+
 
 @dataclass(frozen=True)
 class ObstaclePolicy:
@@ -405,3 +434,15 @@ class Decision:
     def pass_side(self) -> int:
         """+1 / -1 when passing on that side, else 0 (the controller's view)."""
         return self.side.pass_side
+
+    def ahead(self, tau_s: float, ego_s_m: float, ego_lat_m: float) -> Decision:
+        """This decision ``tau_s`` [s] after it was taken, before the next scene, for the
+        ego's CG now at (``ego_s_m``, ``ego_lat_m``) [m]: the obstacles moved by their
+        constant-velocity prediction (:meth:`Obstacles.ahead`) and narrowed where the ego
+        has moved into one (:func:`controllers.behaviour.ellipse_fit.leave_ego_outside`,
+        as the behaviour does when it decides), everything else held. What the loop hands
+        the controller between two decisions."""
+        if tau_s == 0.0 or self.obstacles.count == 0:
+            return self
+        return replace(self, obstacles=self.obstacles.ahead(tau_s).around_ego(ego_s_m,
+                                                                             ego_lat_m))

@@ -3,6 +3,17 @@
 Each stage is a small protocol (World inside the dynamics, Behaviour, Controller,
 EgoDynamics, Recorder, StopRule); :class:`Stages` holds one run's instances, built by
 :mod:`suite.run.runner` (SUMO) or by a test (a fake World).
+
+Two rates. The controller, the plant, the safety monitor and the recorder run every
+control step (``step_s``). The behaviour decides at the scene's rate: on a *fresh* scene
+(:attr:`suite.world.protocol.Scene.fresh`: a SUMO step, 10 Hz by default, or every step
+of a world without multi-rate). Between two fresh scenes the world only extrapolates its
+last state, so deciding again would decide on the same information; instead the
+controller gets the last decision tau = t - t_decision later with its obstacles moved by
+their own constant-velocity prediction (:meth:`controllers.behaviour.types.Decision.
+ahead`), the prediction the controller makes over its horizon anyway, and narrowed
+where the ego has moved into one (as the behaviour narrows them when it decides). A run
+with ``sumo_step_s = step_s`` has only fresh scenes and decides every step.
 """
 
 from __future__ import annotations
@@ -77,14 +88,20 @@ def run_loop(stages: Stages, n_steps: int) -> str:
 def _steps(stages: Stages, n_steps: int) -> str:
     clock = time.perf_counter
     ego, scene = stages.dynamics.start()
+    decided: Decision | None = None  # the behaviour's last decision, taken at decided_t_s
+    decided_t_s = 0.0
     for step in range(n_steps):
         if step % YOUNG_COLLECT_STEPS == YOUNG_COLLECT_STEPS - 1:
             gc.collect(0)
         t0 = clock()
         t_s = step * stages.step_s
-        lanes = stages.lanes.at(ego.s_m)
-        decision = stages.behaviour.decide(ego.frenet(t_s), scene.traffic, lanes,
-                                           stages.set_speed_mps)
+        if scene.fresh or decided is None:
+            decided = stages.behaviour.decide(ego.frenet(t_s), scene.traffic,
+                                              stages.lanes.at(ego.s_m), stages.set_speed_mps)
+            decided_t_s = t_s
+            decision = decided
+        else:
+            decision = decided.ahead(t_s - decided_t_s, ego.s_m, ego.lat_m)
         t1 = clock()
         command = stages.controller.step(observe(t_s, ego, decision))
         t2 = clock()

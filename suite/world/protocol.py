@@ -49,12 +49,18 @@ class WorldEgo:
 @dataclass(frozen=True)
 class Scene:
     """The world after a step: time since the run's origin [s], the other vehicles,
-    the ego as the world has it (None once it left), collisions of the ego this step."""
+    the ego as the world has it (None once it left), collisions of the ego this step.
+
+    ``fresh``: the world's own state is new at this step (a SUMO step, or every step of
+    a world without multi-rate); False when ``traffic`` is the last such state
+    extrapolated (:mod:`suite.world.multirate`). The behaviour decides on fresh scenes
+    only (:func:`suite.run.loop.run_loop`)."""
 
     t_s: float
     traffic: Traffic
     ego: WorldEgo | None
     collisions: tuple[SumoCollision, ...] = ()
+    fresh: bool = True
 
 
 @dataclass(frozen=True)

@@ -201,7 +201,8 @@ class SumoWorld:
         if self._held_dir is None:
             self._held_dir = headings(held.traffic)
         return Scene(t_s=held.t_s + tau,
-                     traffic=extrapolate_traffic(held.traffic, tau, self._held_dir), ego=held.ego)
+                     traffic=extrapolate_traffic(held.traffic, tau, self._held_dir), ego=held.ego,
+                     fresh=False)
 
     def close(self) -> WorldSummary:
         if self._story is not None:
