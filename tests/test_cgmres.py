@@ -367,3 +367,19 @@ def test_cgmres_converges_with_lateral_reference(cost: str) -> None:
                  np.empty((params.n_stages + 1, 12)), f)
     assert np.max(np.abs(f)) < 1e-7
     assert xs[-1, 1] > 2.5  # pulled toward the reference lane
+
+
+def test_a_residual_held_above_the_diverging_bound_is_a_failure() -> None:
+    """E above diverging_residual (5) at every update for diverging_s (0.2 s) fails the
+    update; a dip to or below 5 starts the clock again; above fallback_residual (50)
+    fails at once."""
+    outer = CgmresOuter(FrenetPath.cached(STRAIGHT), CgmresParams(), 3)
+    outer._diverging_since = math.inf
+    seq = [(0.00, 6.0), (0.10, 7.0), (0.18, 9.0), (0.20, 5.0), (0.22, 6.0), (0.40, 6.0),
+           (0.42, 6.0)]
+    got = [outer._failed(t, e) for t, e in seq]
+    assert got == [False, False, False, False, False, False, True]
+    outer._diverging_since = math.inf
+    assert outer._failed(1.0, 51.0) and outer._failed(1.0, math.nan)
+    with pytest.raises(ValueError):
+        CgmresParams(diverging_residual=60.0)  # above fallback_residual

@@ -106,13 +106,20 @@ class CgmresParams(OcpParams):
     obstacle_fade_s: float = param(0.5, "s", "barrier weight fade of an obstacle in and out")
     fallback_residual: float = param(50.0, "-",
                                      "residual E (largest entry of F) above which it restarts")
+    diverging_residual: float = param(5.0, "-", "residual E that, held for diverging_s, is a "
+                                      "diverging continuation: it restarts too")
+    diverging_s: float = param(0.2, "s", "how long E may stay above diverging_residual")
     fallback_hold_s: float = param(1.0, "s", "duration of the braking plan after a restart")
 
     def __post_init__(self) -> None:
         super().__post_init__()
         for name in ("zeta_s", "horizon_growth_rate", "z_guard", "obstacle_fade_s",
-                     "fallback_residual"):
+                     "fallback_residual", "diverging_residual", "diverging_s"):
             check_range(self, name, gt=0.0)
+        if self.diverging_residual > self.fallback_residual:
+            raise ParamError("diverging_residual",
+                             f"a number <= fallback_residual = {self.fallback_residual}",
+                             self.diverging_residual)
         check_range(self, "fd_step", gt=0.0, lt=1e-2)
         check_range(self, "fallback_hold_s", ge=0.0)
         check_range(self, "k_max", ge=1, le=200)
