@@ -9,9 +9,16 @@ from pathlib import Path
 import pytest
 
 from controllers.plant.vehicle_model import VehicleParams
-from suite.catalog import ActorEventSpec, ActorSpec, CatalogError, SpecError, load_catalog
+from suite.catalog import (
+    ActorEventSpec,
+    ActorSpec,
+    ActorWhenSpec,
+    CatalogError,
+    SpecError,
+    load_catalog,
+)
 from suite.road.network import RoadNetwork
-from suite.world.actors import _Ramp
+from suite.world.actors import EgoAndActor, _Ramp
 from suite.world.routes import RouteFile
 
 KNOWN = {"lane_keep", "two_loop"}
@@ -96,3 +103,72 @@ def test_speed_ramp_is_linear_then_held() -> None:
     assert up.speed(7.0) == 45.0 and up.speed(100.0) == 45.0
     down = _Ramp(t0_s=0.0, v0_mps=20.0, v1_mps=10.0, accel_mps2=2.0)
     assert down.speed(2.5) == pytest.approx(15.0) and down.speed(6.0) == 10.0
+
+
+def test_triggers_and_relative_starts_build_their_specs(tmp_path: Path) -> None:
+    cat = _load(tmp_path, """
+[[scenario.actors]]
+id = "cutter"
+lane = 2
+ahead_of_ego_m = 40.0
+speed_mps = 20.0
+events = [ { when = { ahead_gap_m = 15.0, delay_s = 0.5 }, lane_change = -1 },
+           { t_s = 2.0, when = { ttc_s = 3 }, speed_mps = 10.0 } ]
+""")
+    sc = cat.scenarios[0]  # type: ignore[attr-defined]
+    (actor,) = sc.actors
+    assert actor.pos_m == 90.0  # the ego's 50 m + 40 m, front bumpers along the route
+    first, second = actor.events
+    assert first.t_s is None and first.earliest_s == 0.0
+    assert first.when == ActorWhenSpec(ahead_gap_m=15.0, delay_s=0.5)
+    assert second.earliest_s == 2.0 and second.when is not None and second.when.ttc_s == 3.0
+    events = sc.as_dict()["actors"][0]["events"]
+    assert events[0]["when"] == {"ahead_gap_m": 15.0, "delay_s": 0.5}
+    # an event without a trigger reads as it always did (no "when" key)
+    plain = ActorEventSpec(1.0, lane_change=1).as_dict()
+    assert plain == {"t_s": 1.0, "lane_change": 1, "speed_mps": None, "accel_mps2": 2.0}
+
+
+@pytest.mark.parametrize(("body", "key"), [
+    ('{ id = "a", lane = 0, pos_m = 90.0, ahead_of_ego_m = 10.0, speed_mps = 20.0 }',
+     "actors.0.ahead_of_ego_m"),
+    ('{ id = "a", lane = 0, ahead_of_ego_m = -80.0, speed_mps = 20.0 }',
+     "actors.0.ahead_of_ego_m"),
+    ('{ id = "a", lane = 0, ahead_of_ego_m = "far", speed_mps = 20.0 }',
+     "actors.0.ahead_of_ego_m"),
+    ('{ id = "a", lane = 0, pos_m = 90.0, speed_mps = 20.0, events = [ { lane_change = 1 } ] }',
+     "actors.0.events.0.t_s"),
+    ('{ id = "a", lane = 0, pos_m = 90.0, speed_mps = 20.0, events = [ { when = { delay_s = 1 },'
+     ' lane_change = 1 } ] }', "actors.0.events.0.when"),
+    ('{ id = "a", lane = 0, pos_m = 90.0, speed_mps = 20.0, events = [ { when = { ttc_s = 0 },'
+     ' lane_change = 1 } ] }', "actors.0.events.0.when"),
+    ('{ id = "a", lane = 0, pos_m = 90.0, speed_mps = 20.0, events = [ { when = { gap = 3 },'
+     ' lane_change = 1 } ] }', "actors.0.events.0.when"),
+])
+def test_bad_triggers_and_relative_starts_are_reported_by_key(tmp_path: Path, body: str,
+                                                              key: str) -> None:
+    assert f"scenario[0].{key} (scenario 'a')" in _problems(tmp_path, f"actors = [ {body} ]\n")
+
+
+def test_when_conditions_known_answers() -> None:
+    # ego front at 100 m, 25 m/s; actor front at 130 m, 4.5 m long, 20 m/s: gap 25.5 m,
+    # headway 25.5 / 25 = 1.02 s, time to collision 25.5 / 5 = 5.1 s
+    view = EgoAndActor(100.0, 25.0, 130.0, 20.0, 4.5)
+    assert view.gap_m == pytest.approx(25.5)
+    assert view.holds(ActorWhenSpec(ahead_gap_m=25.5))
+    assert not view.holds(ActorWhenSpec(ahead_gap_m=25.4))
+    assert view.holds(ActorWhenSpec(time_headway_s=1.02 + 1e-9))
+    assert not view.holds(ActorWhenSpec(time_headway_s=1.01))
+    assert view.holds(ActorWhenSpec(ttc_s=5.1 + 1e-9)) and not view.holds(ActorWhenSpec(ttc_s=5.0))
+    assert view.holds(ActorWhenSpec(ego_pos_m=100.0))
+    assert not view.holds(ActorWhenSpec(ego_pos_m=101.0))
+    # all conditions given must hold
+    assert not view.holds(ActorWhenSpec(ahead_gap_m=30.0, ttc_s=5.0))
+    # not closing: no time to collision; behind the ego: no gap, headway or TTC holds
+    assert not EgoAndActor(100.0, 20.0, 130.0, 25.0, 4.5).holds(ActorWhenSpec(ttc_s=100.0))
+    behind = EgoAndActor(100.0, 25.0, 90.0, 20.0, 4.5)
+    assert not behind.holds(ActorWhenSpec(ahead_gap_m=100.0))
+    assert not behind.holds(ActorWhenSpec(time_headway_s=100.0))
+    # an unknown position (a junction) holds nothing
+    assert not EgoAndActor(float("nan"), 25.0, 130.0, 20.0, 4.5).holds(
+        ActorWhenSpec(ahead_gap_m=100.0))

@@ -34,6 +34,7 @@ from suite.catalog.nets import bundled_nets
 from suite.catalog.specs import (
     ActorEventSpec,
     ActorSpec,
+    ActorWhenSpec,
     Catalog,
     ControllerSpec,
     EgoSpec,
@@ -48,6 +49,7 @@ from suite.catalog.sweep import format_sweep_value, sweep_name, sweep_shorts
 __all__ = [
     "ActorEventSpec",
     "ActorSpec",
+    "ActorWhenSpec",
     "Catalog",
     "CatalogError",
     "CatalogIssue",

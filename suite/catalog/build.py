@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
+from suite.catalog.actors import RELATIVE_START, resolve_relative_start
 from suite.catalog.controller_check import ControllerChecker
 from suite.catalog.errors import MISSING, SpecError
 from suite.catalog.network_checks import check_placements, resolve_net, resolve_route
@@ -74,7 +75,7 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
     stalled = _stalled(stalled_raw, report)
     traffic = _traffic(d.get("traffic", MISSING), scalars, report)
     ramps = _ramps(d.get("ramp_traffic", []), report)
-    actors_raw = d.get("actors", [])
+    actors_raw = _relative_starts(d.get("actors", []), d.get("ego"), report)
     actors = _actors(actors_raw, report)
     replay = _replay(d.get("replay", MISSING), catalog_path, report)
     xfail = _spec(XfailSpec, d.get("xfail", MISSING), "xfail", report)  # a known failure
@@ -166,6 +167,28 @@ def _ramps(raw: Any, report: Report) -> list[RampTrafficSpec | None]:
         return []
     return [_spec(RampTrafficSpec, item, f"ramp_traffic.{i}", report)
             for i, item in enumerate(raw)]
+
+
+def _relative_starts(raw: Any, ego: Any, report: Report) -> Any:
+    """The actor tables with ``ahead_of_ego_m`` resolved to ``pos_m``
+    (:func:`suite.catalog.actors.resolve_relative_start`); a problem is reported at the
+    actor's ``ahead_of_ego_m`` and that actor left out."""
+    if not isinstance(raw, list):
+        return raw  # reported by _actors
+    out = []
+    for i, item in enumerate(raw):
+        if not isinstance(item, dict):
+            out.append(item)
+            continue
+        resolved, problem = resolve_relative_start(item, ego)
+        if problem is None and resolved.get("pos_m", 0.0) < 0.0 and RELATIVE_START in item:
+            problem = (f"a place on the route: the ego's pos_m + this must be >= 0 "
+                       f"(it is {resolved['pos_m']:g} m)")
+        if problem is not None:
+            report.add(f"actors.{i}.{RELATIVE_START}", problem, item.get(RELATIVE_START))
+            continue
+        out.append(resolved)
+    return out
 
 
 def _actors(raw: Any, report: Report) -> list[ActorSpec | None]:

@@ -22,7 +22,8 @@ OPTIONAL_SUBKEYS: dict[str, tuple[str, ...]] = {
     "traffic": ("vehicles_per_hour", "seed", "speed_mps", "lanes", "speed_factor_dev",
                 "lane_speeds_mps"),
     "ramp_traffic.*": ("edge", "vehicles_per_hour", "speed_mps"),
-    "actors.*": ("id", "lane", "pos_m", "speed_mps", "length_m", "width_m", "events"),
+    "actors.*": ("id", "lane", "pos_m", "ahead_of_ego_m", "speed_mps", "length_m", "width_m",
+                 "events"),
     "xfail": ("reason", "strict"),
     "replay": ("tracks", "mode", "handover_time_gap_s", "lane_changes", "ego_track"),
 }

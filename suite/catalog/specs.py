@@ -19,13 +19,15 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from suite.catalog import rules
+from suite.catalog.actors import ActorEventSpec, ActorSpec, ActorWhenSpec
 from suite.catalog.errors import SpecError
 from suite.catalog.frozen import FrozenMap, thaw, thaw_map
 from suite.catalog.rules import Rule
 from suite.catalog.storyboard import Storyboard
 from suite.catalog.tracks import TRACK_ID_PREFIX
 
-__all__ = ["REPLAY_LANE_CHANGES", "REPLAY_MODES", "ActorEventSpec", "ActorSpec", "Catalog",
+__all__ = ["REPLAY_LANE_CHANGES", "REPLAY_MODES", "ActorEventSpec", "ActorSpec",
+           "ActorWhenSpec", "Catalog",
            "ControllerSpec", "EgoSpec", "RampTrafficSpec", "ReplaySpec", "Scenario",
            "StalledSpec", "TrafficSpec", "XfailSpec", "default_sumo_step", "sumo_step_problem"]
 
@@ -155,83 +157,6 @@ class StalledSpec:
     def __post_init__(self) -> None:
         rules.check_fields(self)
         rules.as_float(self, "pos_m", "length_m", "width_m")
-
-
-@dataclass(frozen=True)
-class ActorEventSpec:
-    """What a scripted vehicle does from run time ``t_s`` [s] on: ``lane_change`` lanes to
-    the left (> 0) or right (< 0) of the lane it is in then (SUMO's continuous lane change,
-    without regard for other drivers: a cut-in is a cut-in); ``speed_mps`` a new speed
-    [m/s], reached at ``accel_mps2`` [m/s²] (a linear ramp, up or down) and then held.
-    At least one of the two."""
-
-    t_s: float
-    lane_change: int = 0
-    speed_mps: float | None = None
-    accel_mps2: float = 2.0
-
-    _RULES: ClassVar[dict[str, Rule]] = {
-        "t_s": rules.num(0.0), "lane_change": rules.lane_change,
-        "speed_mps": rules.num(0.0, optional=True),
-        "accel_mps2": rules.num(0.0, strict=True),
-    }
-    _REQUIRED: ClassVar[tuple[str, ...]] = ("t_s",)
-
-    def __post_init__(self) -> None:
-        rules.check_fields(self)
-        if self.lane_change == 0 and self.speed_mps is None:
-            raise SpecError("lane_change", "a lane change (+/-1, ...) or a speed_mps in the "
-                            "event (it does nothing)", self.lane_change)
-        rules.as_float(self, "t_s", "accel_mps2")
-        if self.speed_mps is not None:
-            rules.as_float(self, "speed_mps")
-
-
-@dataclass(frozen=True)
-class ActorSpec:
-    """A scripted vehicle: starts at t = 0 in lane ``lane`` with its front bumper at route
-    position ``pos_m`` [m] at ``speed_mps`` [m/s], holds that speed and its lane (it
-    still brakes for what is ahead of it, the ego included) and does its ``events`` in
-    time order. Its SUMO id is ``actor_<id>``."""
-
-    id: str
-    lane: int
-    pos_m: float
-    speed_mps: float
-    length_m: float = 4.5
-    width_m: float = 1.8
-    events: tuple[ActorEventSpec, ...] = ()
-
-    _RULES: ClassVar[dict[str, Rule]] = {
-        "id": rules.name_rule, "lane": rules.integer(0), "pos_m": rules.num(0.0),
-        "speed_mps": rules.num(0.0), "length_m": rules.num(0.0, strict=True),
-        "width_m": rules.num(0.0, strict=True), "events": rules.table_list,
-    }
-    _REQUIRED: ClassVar[tuple[str, ...]] = ("id", "lane", "pos_m", "speed_mps")
-
-    def __post_init__(self) -> None:
-        rules.check_fields(self)
-        events = []
-        for i, ev in enumerate(self.events):
-            if isinstance(ev, ActorEventSpec):
-                events.append(ev)
-                continue
-            try:
-                events.append(ActorEventSpec(**ev))
-            except SpecError as exc:
-                raise SpecError(f"events.{i}.{exc.field}", exc.expected, exc.got) from None
-            except TypeError:
-                raise SpecError(f"events.{i}", "a table with keys "
-                                f"{list(ActorEventSpec._RULES)}", ev) from None
-        times = [ev.t_s for ev in events]
-        if times != sorted(times):
-            raise SpecError("events", "events in time order (t_s ascending)", times)
-        object.__setattr__(self, "events", tuple(events))
-        rules.as_float(self, "pos_m", "speed_mps", "length_m", "width_m")
-
-    @property
-    def sumo_id(self) -> str:
-        return f"actor_{self.id}"
 
 
 @dataclass(frozen=True)
@@ -613,8 +538,7 @@ class Scenario:
             "timeout_s": self.timeout_s,
             "friction": self.friction,
             "ramp_traffic": [_plain_dataclass(r) for r in self.ramp_traffic],
-            "actors": [{**_plain_dataclass(a), "events": [_plain_dataclass(e) for e in a.events]}
-                       for a in self.actors],
+            "actors": [a.as_dict() for a in self.actors],
         }
 
 

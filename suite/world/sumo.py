@@ -107,7 +107,10 @@ class SumoWorld:
         self.work_dir = Path(work_dir)
         self.externally_driven = externally_driven
         self._routes = RouteFile(scenario, network, vehicle, self.ssm_file, externally_driven)
-        self._actors = ActorScript(scenario.actors)
+        triggered = any(ev.when is not None for a in scenario.actors for ev in a.events)
+        self._actors = ActorScript(scenario.actors, self._route_pos if triggered else None,
+                                   EGO_ID)
+        self._edge_starts_m = network.route_edge_starts_m(tuple(scenario.route))
         self._radius_m = max(float(scenario.record_radius_m), SENSING_RADIUS_M)
         self._ls: Any = None
         self._tc: Any = None
@@ -203,6 +206,12 @@ class SumoWorld:
         return Scene(t_s=held.t_s + tau,
                      traffic=extrapolate_traffic(held.traffic, tau, self._held_dir), ego=held.ego,
                      fresh=False)
+
+    def _route_pos(self, ls: Any, vid: str) -> float:
+        """A vehicle's front bumper route position [m]: its edge's start on the route plus
+        its lane position; NaN on an edge off the route or inside a junction."""
+        start = self._edge_starts_m.get(str(ls.vehicle.getRoadID(vid)))
+        return math.nan if start is None else start + float(ls.vehicle.getLanePosition(vid))
 
     def close(self) -> WorldSummary:
         if self._story is not None:
