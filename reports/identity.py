@@ -97,8 +97,10 @@ def _limit(value: Any) -> float | None:
 
 
 def limits_sha256(criteria: Mapping[str, Any]) -> str:
-    """Digest of the limits in force (criterion -> limit, None = off)."""
-    return digest({k: _limit(v) for k, v in criteria.items()})
+    """Digest of the limits in force: criterion -> limit, the criteria that are on only
+    (an off criterion limits nothing, so a new criterion that is off by default leaves
+    every run's limits as they were)."""
+    return digest({k: limit for k, v in criteria.items() if (limit := _limit(v)) is not None})
 
 
 def sut_sha256(controller: str, params: Mapping[str, Any], code: str) -> str:

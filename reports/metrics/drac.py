@@ -53,19 +53,29 @@ def drac_mps2(gap_m: np.ndarray, closing_mps: np.ndarray) -> FloatColumn:
     return out
 
 
-def drac_series(ctx: RunContext, pairs: TtcPairs) -> FloatColumn:
-    """Per trace row: the DRAC [m/s²] of the ego against its leader (module doc)."""
-    out = np.zeros(ctx.n)
+def leader_rows(pairs: TtcPairs) -> tuple[np.ndarray, FloatColumn, FloatColumn]:
+    """The ego's leader at each trace row that has one (module doc: ahead, the ego
+    moving, in its path, the nearest): (rows (L,), their gaps [m] (L,), closing speeds
+    [m/s] (L,)), rows ascending. The one definition of "the vehicle ahead" for DRAC and
+    the R157 time gap (:mod:`reports.metrics.r157`)."""
     keep = pairs.ahead & pairs.ego_moving & pairs.in_path
-    if not np.any(keep):
-        return out
     rows, gaps, closing = pairs.row[keep], pairs.gap_m[keep], pairs.closing_mps[keep]
+    if rows.size == 0:
+        return rows, gaps, closing
     # the nearest leader per row: sort by row, then gap (a NaN gap sorts last)
     order = np.lexsort((np.where(np.isnan(gaps), np.inf, gaps), rows))
     rows, gaps, closing = rows[order], gaps[order], closing[order]
     first = np.ones(rows.size, dtype=bool)
     first[1:] = rows[1:] != rows[:-1]
-    out[rows[first]] = drac_mps2(gaps[first], closing[first])
+    return rows[first], gaps[first], closing[first]
+
+
+def drac_series(ctx: RunContext, pairs: TtcPairs) -> FloatColumn:
+    """Per trace row: the DRAC [m/s²] of the ego against its leader (module doc)."""
+    out = np.zeros(ctx.n)
+    rows, gaps, closing = leader_rows(pairs)
+    if rows.size:
+        out[rows] = drac_mps2(gaps, closing)
     return out
 
 

@@ -21,6 +21,7 @@ from reports.metrics.context import build_context
 from reports.metrics.criteria import Criteria, steps_failure
 from reports.metrics.drac import drac_metrics, drac_series
 from reports.metrics.drivable import drivable_metrics, offroad_excess_series
+from reports.metrics.r157 import gap_shortfall_metrics
 from reports.metrics.safety import ellipse_margin_series, safety_metrics
 from reports.metrics.timing import health_metrics, timing_metrics
 from reports.metrics.tracking import tracking_metrics
@@ -77,6 +78,7 @@ def measure_all(record: RunRecord) -> tuple[list[Measured], SeriesColumns, Colli
         drac_mps2=drac)
     collisions = judge_collisions(ctx)
     found = (safety_metrics(ctx, ahead, behind, margin) + drac_metrics(ctx, drac)
+             + gap_shortfall_metrics(ctx, pairs)
              + collision_metrics(ctx, collisions) + drivable_metrics(ctx, excess)
              + comfort_metrics(comfort) + tracking_metrics(ctx) + timing_metrics(ctx)
              + health_metrics(ctx)

@@ -62,7 +62,7 @@ SCALES: dict[str, float] = {c: s.criterion.scale for c, s in CRITERIA.items()
 # a criterion the catalogue does not know (a stored run's): max(|L|, 1) in its unit
 DEFAULT_SCALE = 1.0
 CUMULATIVE = ("max_at_fault_collisions", "max_collision", "max_offroad_s", "max_shoulder_s",
-              "max_deadline_misses", "max_fallbacks")
+              "max_deadline_misses", "max_fallbacks", "max_r157_gap_shortfall_s")
 COLLISION_CRITERIA = ("max_at_fault_collisions", "max_collision")
 GAP_SCALE_M = 1.0
 DELTA_V_SCALE_MPS = 1.0
