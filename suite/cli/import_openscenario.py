@@ -54,6 +54,9 @@ def add_openscenario_parser(fmt: argparse._SubParsersAction[argparse.ArgumentPar
     c.add_argument("--variants", type=lambda t: whole_number(t, 0, "a count >= 0"),
                    default=0, metavar="N", help="also import N parameter sets of each "
                    "variation file as scenarios (default 0: count and list them only)")
+    c.add_argument("--r157", action="store_true",
+                   help="judge the scenarios by UN R157's acceptance criteria too (the "
+                        "minimum following time gap, docs/metrics.md)")
     c.set_defaults(func=cmd_import_openscenario)
 
 
@@ -69,7 +72,7 @@ def cmd_import_openscenario(args: argparse.Namespace) -> int:
                                    ImportOptions(ego=args.ego,
                                                  ignore_constraints=args.ignore_constraints,
                                                  duration_s=args.duration_s,
-                                                 variants=args.variants),
+                                                 variants=args.variants, r157=args.r157),
                                    overwrite=args.overwrite)
     except OutputRefused as exc:
         err(str(exc))

@@ -48,6 +48,10 @@ __all__ = ["FileResult", "ImportOptions", "ImportOutcome", "import_files"]
 TOP_LEVEL = ("FileHeader", "ParameterDeclarations", "CatalogLocations", "RoadNetwork",
              "Entities", "Storyboard")
 DEFAULT_DURATION_S = 60.0
+# UN R157's acceptance criteria that are off by default (docs/metrics.md): the minimum
+# following time gap, kept beyond 3 s of each shortfall. No collision caused by the
+# system is the default max_at_fault_collisions = 0 already.
+R157_CRITERIA = {"max_r157_gap_shortfall_s": 0.0}
 MIN_ROAD_AHEAD_M = 50.0  # an ego starting closer than this [m] to its route's end is refused
 
 
@@ -56,12 +60,14 @@ class ImportOptions:
     """``ego``: the ego entity's name (None: the one named like an ego);
     ``ignore_constraints``; ``duration_s`` [s]: the run's length when the stop trigger
     is not a plain simulation time (None: :data:`DEFAULT_DURATION_S`); ``variants``: how
-    many parameter sets of a variation file become scenarios."""
+    many parameter sets of a variation file become scenarios; ``r157``: each scenario
+    is judged by UN R157's acceptance criteria too (:data:`R157_CRITERIA`)."""
 
     ego: str | None = None
     ignore_constraints: bool = False
     duration_s: float | None = None
     variants: int = 0
+    r157: bool = False
 
     def __post_init__(self) -> None:
         if self.duration_s is not None and not (math.isfinite(self.duration_s)
@@ -213,8 +219,10 @@ def build_scenario(source: Path, out_dir: Path, options: ImportOptions,
         raise OscImportError(str(source), "Init", f"the ego {ego.name} starts {left:.1f} m "
                              "before its route ends (a lane driving against the road's "
                              "reference line on a right-hand-traffic road?)")
-    table = {"net": net_path.name, "route": list(route), "ego": ego_t,
-             "duration_s": _duration(stop, options, notes)}
+    table: dict[str, Any] = {"net": net_path.name, "route": list(route), "ego": ego_t,
+                             "duration_s": _duration(stop, options, notes)}
+    if options.r157:
+        table["criteria"] = dict(R157_CRITERIA)
     return _Built(table, story, notes)
 
 
