@@ -1,4 +1,4 @@
-"""``hwyeval bench``: the speed targets of issues 11 and 25, measured in one run and
+"""``hwyeval bench``: the speed targets of issues 11, 25 and 36, measured in one run and
 judged (:mod:`suite.bench.targets`), with the machine's load at its start and end (these
 machines are shared: every ratio is taken within this one invocation). docs/bench.md
 says how to read it.
@@ -44,6 +44,7 @@ from typing import Any
 from suite.bench.catalogs import MATRIX_CATALOG, dense_catalog
 from suite.bench.command import CommandTiming, run_command
 from suite.bench.figures import CommandFigures, DenseRunFigures, FloorFigures, measured_targets
+from suite.bench.isolation import isolate
 from suite.bench.summary import summary_lines
 from suite.bench.targets import TARGETS, Measured, TargetResult, all_met, judge
 
@@ -71,7 +72,9 @@ class BenchOptions:
     (``--jobs 1`` and ``--jobs 2``; the ``seeds`` command is reused when equal), the
     solver comparison's repeats and duration; ``quick`` leaves out the parts no target
     is judged on (extrapolation, the no-log command, the matrix); without
-    ``include_runner`` no SUMO (phases 3, 4), without ``include_ipopt`` no phase 2."""
+    ``include_runner`` no SUMO (phases 3, 4), without ``include_ipopt`` no phase 2;
+    ``isolated``: the dense runs pinned to one core with the other load listed
+    (:mod:`suite.bench.isolation`), and the step max judged."""
 
     seeds: int = 4
     catalog_runs: int = 24
@@ -81,6 +84,7 @@ class BenchOptions:
     quick: bool = False
     include_runner: bool = True
     include_ipopt: bool = True
+    isolated: bool = False
 
     def __post_init__(self) -> None:
         for name in ("seeds", "catalog_runs", "solver_repeats"):
@@ -178,8 +182,8 @@ def _extrapolation() -> dict[str, Any]:
 
 
 def _timed(progress: Progress, label: str, catalog: Path, out: Path, jobs: int,
-           log: bool) -> CommandTiming:
-    t = run_command(catalog, out, jobs=jobs, log=log)
+           log: bool, cpus: frozenset[int] | None = None) -> CommandTiming:
+    t = run_command(catalog, out, jobs=jobs, log=log, cpus=cpus)
     progress.note(f"{label}: {t.sim_s:.0f} s simulated in {t.wall_s:.2f} s "
                   f"(x{t.realtime_factor:.1f}), exit {t.exit_code}")
     return t
@@ -206,8 +210,16 @@ def _commands(tmp: Path, opts: BenchOptions, progress: Progress) -> _CommandsPar
     run_command(warm, tmp / "out_warmup", jobs=1, log=True)
     progress.phase(f"dense runs: {opts.seeds} x {dur:g} s, --jobs 1, logs on")
     runs: dict[str, CommandTiming] = {}
+    cpus: frozenset[int] | None = None
+    isolation: dict[str, Any] | None = None
+    if opts.isolated:
+        iso = isolate()
+        progress.note(iso.line())
+        cpus = frozenset({iso.cpu})
+        isolation = {"cpu": iso.cpu, "sample_s": iso.sample_s, "line": iso.line(),
+                     "others": [asdict(o) for o in iso.others]}
     runs["dense_jobs1_log"] = _timed(progress, "dense_jobs1_log", dense_toml,
-                                     tmp / "out_dense", 1, True)
+                                     tmp / "out_dense", 1, True, cpus)
     progress.phase(f"floor study: the same {opts.seeds} runs with timers around the "
                    "C/GMRES kernel and SUMO's step")
     floor = floor_study(dense_toml, tmp / "out_floor")
@@ -229,6 +241,8 @@ def _commands(tmp: Path, opts: BenchOptions, progress: Progress) -> _CommandsPar
         runs["matrix_jobs1_log"] = _timed(progress, "matrix_jobs1_log", matrix,
                                           tmp / "out_matrix", 1, True)
     out: dict[str, Any] = {k: v.as_dict() for k, v in runs.items()}
+    if isolation is not None:
+        out["isolation"] = isolation
     out["floor"] = {**floor, "bound": bound(floor, out["dense_jobs1_log"])}
     command = CommandFigures.of(jobs1, runs["catalog_jobs2_log"])
     out["jobs2_over_jobs1"] = {"whole_command": command.jobs1_over_jobs2_whole_command,
@@ -292,7 +306,7 @@ def run_all(options: BenchOptions | None = None,
             measured += measured_targets(part.dense, part.floor, part.command)
             figures["issue25"] = {"dense": asdict(part.dense), "floor": asdict(part.floor),
                                   "command": part.command.as_dict()}
-        results = judge(measured)
+        results = judge(measured, isolated=opts.isolated)
     figures["targets"] = [{**asdict(r.target), "comparison": r.target.comparison.value,
                            "value": r.value, "met": r.met, "why_not": r.why_not}
                           for r in results]

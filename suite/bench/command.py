@@ -74,8 +74,9 @@ class RunFigures:
     """One run: wall [s] of the run (results.csv's ``wall_s``: build and loop) and of its
     recorded stages (behaviour, controller, dynamics summed over its steps), simulated
     time [s], peak RSS of its process [MB], Rerun log time [s], its behaviour +
-    controller step p99 and max [ms] (results.csv), and on the wall clock [epoch s]
-    its start, its loop's end and its end (run.json written); NaN where unknown."""
+    controller step p99 and max and its C/GMRES outer update's p99 [ms] (results.csv),
+    and on the wall clock [epoch s] its start, its loop's end and its end (run.json
+    written); NaN where unknown."""
 
     scenario: str
     status: str
@@ -89,6 +90,7 @@ class RunFigures:
     start_epoch_s: float = math.nan
     loop_end_epoch_s: float = math.nan
     end_epoch_s: float = math.nan
+    outer_p99_ms: float = math.nan
 
     def __post_init__(self) -> None:
         if self.wall_s < 0 or self.sim_s < 0:
@@ -109,6 +111,13 @@ class RunFigures:
     @property
     def realtime_factor(self) -> float:
         return self.sim_s / self.wall_s if self.wall_s > 0 else float("nan")
+
+    @property
+    def step_p99_over_outer_p99(self) -> float:
+        """Behaviour + controller step p99 over the outer update's p99 of this run (NaN
+        without both)."""
+        ok = self.outer_p99_ms > 0 and math.isfinite(self.step_p99_ms)
+        return self.step_p99_ms / self.outer_p99_ms if ok else float("nan")
 
 
 @dataclass(frozen=True)
@@ -170,9 +179,11 @@ class CommandTiming:
                 "steps_us": {k: v.__dict__ for k, v in self.steps.items()}}
 
 
-def run_command(catalog: Path, out: Path, jobs: int, log: bool) -> CommandTiming:
+def run_command(catalog: Path, out: Path, jobs: int, log: bool,
+                cpus: frozenset[int] | None = None) -> CommandTiming:
     """Run ``catalog`` through the command line into ``out`` (must not exist) and read
-    back what it wrote; every line it prints is stamped as it arrives."""
+    back what it wrote; every line it prints is stamped as it arrives. ``cpus``: pin the
+    command and every process it starts to these CPUs (``taskset``'s affinity)."""
     if out.exists():
         raise FileExistsError(f"{out} exists: the bench runs into fresh folders")
     args = [sys.executable, "-m", "suite", "run", str(catalog), "--out", str(out),
@@ -181,8 +192,13 @@ def run_command(catalog: Path, out: Path, jobs: int, log: bool) -> CommandTiming
     epoch0 = time.time()  # the run files' mtimes are on this clock
     t0 = time.perf_counter()
     lines: list[StampedLine] = []
+    def pin() -> None:  # in the child, before it runs Python: its children inherit it
+        if cpus:
+            os.sched_setaffinity(0, cpus)
+
     with subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                          stderr=subprocess.STDOUT, text=True, bufsize=1) as proc:
+                          stderr=subprocess.STDOUT, text=True, bufsize=1,
+                          preexec_fn=pin if cpus else None) as proc:
         if proc.stdout is None:  # not with stdout=PIPE
             raise RuntimeError("the command's output pipe is missing")
         for text in proc.stdout:
@@ -212,10 +228,12 @@ class _Row:
 
     step_p99_ms: float
     step_max_ms: float
+    outer_p99_ms: float
 
 
 def _results_rows(out: Path) -> dict[str, _Row]:
-    """results.csv's ``step_ms_p99`` and ``step_ms_max`` by scenario (none without it)."""
+    """results.csv's ``step_ms_p99``, ``step_ms_max`` and ``outer_ms_p99`` by scenario
+    (none without it)."""
     path = out / "results.csv"
     if not path.exists():
         return {}
@@ -227,7 +245,8 @@ def _results_rows(out: Path) -> dict[str, _Row]:
             return math.nan
 
     with path.open(newline="") as f:
-        return {row["scenario"]: _Row(num(row.get("step_ms_p99")), num(row.get("step_ms_max")))
+        return {row["scenario"]: _Row(num(row.get("step_ms_p99")), num(row.get("step_ms_max")),
+                                      num(row.get("outer_ms_p99")))
                 for row in csv.DictReader(f)}
 
 
@@ -271,13 +290,13 @@ def _read_runs(out: Path) -> tuple[list[RunFigures], dict[str, StepStats]]:
         log_s = outcome.get("log_s")
         wall_s = float(outcome["wall_s"])
         start, loop_end, end = _when(run_dir, wall_s)
-        row = rows.get(run_dir.name, _Row(math.nan, math.nan))
+        row = rows.get(run_dir.name, _Row(math.nan, math.nan, math.nan))
         runs.append(RunFigures(
             scenario=run_dir.name, status=str(status), wall_s=wall_s,
             stages_s=float(np.nansum(both) + np.nansum(dyn)), sim_s=float(outcome["sim_time_s"]),
             peak_rss_mb=float(outcome["peak_rss_mb"]),
             log_s=float(log_s) if isinstance(log_s, int | float) else float("nan"),
             step_p99_ms=row.step_p99_ms, step_max_ms=row.step_max_ms, start_epoch_s=start,
-            loop_end_epoch_s=loop_end, end_epoch_s=end))
+            loop_end_epoch_s=loop_end, end_epoch_s=end, outer_p99_ms=row.outer_p99_ms))
     steps = {k: StepStats.of(np.concatenate(v)) for k, v in pools.items() if v}
     return runs, steps

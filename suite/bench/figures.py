@@ -4,12 +4,16 @@
   on): each run's real-time factor on results.csv's ``wall_s`` (build and loop) and on
   its whole life from its start to its run.json, their medians and range; the worst
   run's behaviour + controller step p99 and max (results.csv ``step_ms_p99``,
-  ``step_ms_max``);
+  ``step_ms_max``) and the worst ratio of a run's step p99 to its own C/GMRES outer
+  update p99 (``outer_ms_p99``);
+* :func:`floor_realtime_factor`: the floor, simulated time over the kernel's and SUMO's
+  step's time per run (the floor study), the real-time factor with every other part free;
 * :class:`CommandFigures`: the whole ``hwyeval run`` command on a dense catalog at
   ``--jobs 1`` (real-time factor, :class:`suite.bench.account.WallAccount`) and its
   ``--jobs 2`` / ``--jobs 1`` ratios (scenario phase, whole command);
 * :func:`measured_targets`: the figures each target of :data:`suite.bench.targets.TARGETS`
-  is judged on.
+  is judged on: the dense run's and the whole command's real-time factors as shares of
+  the floor [%], the step p99 ratio, the step max, the ``--jobs`` ratio.
 """
 
 from __future__ import annotations
@@ -24,7 +28,8 @@ from suite.bench.command import CommandTiming, RunFigures
 from suite.bench.floor import FloorRun, glue_per_step_us
 from suite.bench.targets import Measured
 
-__all__ = ["CommandFigures", "DenseRunFigures", "FloorFigures", "measured_targets"]
+__all__ = ["CommandFigures", "DenseRunFigures", "FloorFigures", "floor_realtime_factor",
+           "measured_targets", "share_of_floor_pct"]
 
 
 def _median(values: list[float]) -> float:
@@ -55,6 +60,8 @@ class DenseRunFigures:
     step_p99_worst_run: str
     step_max_ms_worst: float
     step_max_worst_run: str
+    step_p99_over_outer_p99_worst: float = math.nan
+    step_p99_over_outer_p99_worst_run: str = ""
 
     def __post_init__(self) -> None:
         if self.runs < 1:
@@ -70,11 +77,14 @@ class DenseRunFigures:
         life = [r.sim_s / r.span_s if r.span_s > 0 else math.nan for r in timing.runs]
         p99, p99_run = _worst(timing.runs, "step_p99_ms")
         mx, mx_run = _worst(timing.runs, "step_max_ms")
+        ratio, ratio_run = _worst(timing.runs, "step_p99_over_outer_p99")
         return cls(runs=len(timing.runs), duration_s=max(r.sim_s for r in timing.runs),
                    realtime_factor_median=_median(rtf), realtime_factor_min=min(rtf),
                    realtime_factor_max=max(rtf), life_realtime_factor_median=_median(life),
                    step_p99_ms_worst=p99, step_p99_worst_run=p99_run,
-                   step_max_ms_worst=mx, step_max_worst_run=mx_run)
+                   step_max_ms_worst=mx, step_max_worst_run=mx_run,
+                   step_p99_over_outer_p99_worst=ratio,
+                   step_p99_over_outer_p99_worst_run=ratio_run)
 
 
 @dataclass(frozen=True)
@@ -159,23 +169,46 @@ class CommandFigures:
         return out
 
 
+def floor_realtime_factor(duration_s: float, floor: FloorFigures) -> float:
+    """The floor: ``duration_s`` [s] simulated over the C/GMRES kernel's and SUMO's step's
+    time per run [s] (the floor study), the one-run real-time factor with every other
+    part free (NaN when they took no time)."""
+    compiled = floor.kernel_per_run_s + floor.sumo_per_run_s
+    return duration_s / compiled if compiled > 0 else math.nan
+
+
+def share_of_floor_pct(realtime_factor: float, floor_factor: float) -> float:
+    """``realtime_factor`` as a share of ``floor_factor`` [%] (NaN without both)."""
+    if not (math.isfinite(realtime_factor) and floor_factor > 0):
+        return math.nan
+    return 100.0 * realtime_factor / floor_factor
+
+
 def measured_targets(dense: DenseRunFigures | None, floor: FloorFigures | None,
                      command: CommandFigures | None) -> list[Measured]:
-    """The issue-25 figures each target is judged on (those the run measured)."""
+    """The figures each target is judged on (those the run measured); the shares of the
+    floor need the floor study and the dense runs (the floor is per run of the dense
+    runs' duration)."""
     out: list[Measured] = []
 
     def add(name: str, value: float, why: str) -> None:
         out.append(Measured(name, value if math.isfinite(value) else math.nan,
                             "" if math.isfinite(value) else why))
 
+    floor_x = (floor_realtime_factor(dense.duration_s, floor)
+               if dense is not None and floor is not None else math.nan)
     if dense is not None:
-        add("one_run_realtime_factor", dense.realtime_factor_median, "no finite wall_s")
-        add("step_p99_ms_worst_run", dense.step_p99_ms_worst, "no step_ms_p99 in results.csv")
+        if floor is not None:
+            add("one_run_share_of_floor",
+                share_of_floor_pct(dense.realtime_factor_median, floor_x),
+                "no finite wall_s or no floor")
+        add("step_p99_over_outer_p99", dense.step_p99_over_outer_p99_worst,
+            "no step_ms_p99 and outer_ms_p99 in results.csv")
         add("step_max_ms_worst_run", dense.step_max_ms_worst, "no step_ms_max in results.csv")
-    if floor is not None:
-        add("python_between_sumo_and_kernel_us", floor.glue_per_step_us, "no steps timed")
     if command is not None:
-        add("command_realtime_factor_jobs1", command.realtime_factor, "no runs")
+        if floor is not None and dense is not None:
+            add("command_share_of_floor_jobs1",
+                share_of_floor_pct(command.realtime_factor, floor_x), "no floor")
         add("jobs2_over_jobs1_scenario_phase", command.jobs1_over_jobs2_scenario_phase,
             "no --jobs 2 scenario phase")
     return out

@@ -5,7 +5,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from suite.bench.figures import CommandFigures, DenseRunFigures, FloorFigures
+from suite.bench.figures import (
+    CommandFigures,
+    DenseRunFigures,
+    FloorFigures,
+    floor_realtime_factor,
+    share_of_floor_pct,
+)
 
 if TYPE_CHECKING:
     from suite.bench import BenchResult
@@ -45,38 +51,42 @@ def summary_lines(result: BenchResult) -> list[str]:
     for r in result.results:
         lines.append(r.line())
     if result.results:
-        met = sum(r.met for r in result.results)
-        lines.append(f"targets: {met} of {len(result.results)} met")
+        judged = [r for r in result.results if r.judged]
+        met = sum(r.met for r in judged)
+        reported = len(result.results) - len(judged)
+        lines.append(f"targets: {met} of {len(judged)} met"
+                     + (f" ({reported} reported only: --isolated judges it)" if reported else ""))
     else:
         lines.append("targets: not judged (--controller-only)")
     return lines
 
 
 def dense_lines(d: DenseRunFigures, fl: FloorFigures) -> list[str]:
-    """The one-run figures: real-time factor, the Python per step, the worst step."""
+    """The one-run figures: real-time factor, the floor and the share of it, the Python
+    per step (the glue) and its share of the loop, the worst step."""
+    floor_x = floor_realtime_factor(d.duration_s, fl)
+    glue_share = 100.0 * fl.glue_per_run_s / fl.loop_per_run_s if fl.loop_per_run_s > 0 \
+        else float("nan")
     return [
         f"dense target (two_loop, 3 lanes, 2400 veh/h, a stalled car, logs on), {d.runs} x "
         f"{d.duration_s:g} s, --jobs 1:",
+        f"  floor: the kernel and SUMO's step alone (no Python, no build) run a "
+        f"{d.duration_s:g} s run at x{floor_x:.1f} real time (floor study, {fl.runs} runs: "
+        f"kernel {fl.kernel_per_run_s:.3f} s + SUMO's step {fl.sumo_per_run_s:.3f} s a run)",
         f"  one run, real-time factor on results.csv wall_s (build and loop): median "
         f"x{d.realtime_factor_median:.1f} over {d.runs} traffic seeds (x{d.realtime_factor_min:.1f}"
-        f" to x{d.realtime_factor_max:.1f}); on the run's whole life, start to run.json: "
-        f"median x{d.life_realtime_factor_median:.1f}",
-        f"  the Python between SUMO's step and the C/GMRES kernel: {fl.glue_per_step_us:.1f} us "
-        f"a control step ({fl.glue_per_run_s:.3f} s per run of {fl.steps_per_run:.0f} steps; "
-        f"the loop {fl.loop_per_run_s:.3f} s = kernel {fl.kernel_per_run_s:.3f} s + SUMO's "
-        f"step {fl.sumo_per_run_s:.3f} s + that Python; floor study, {fl.runs} runs)",
+        f" to x{d.realtime_factor_max:.1f}) = "
+        f"{share_of_floor_pct(d.realtime_factor_median, floor_x):.0f} % of the floor; on the "
+        f"run's whole life, start to run.json: median x{d.life_realtime_factor_median:.1f}",
+        f"  glue, the Python between SUMO's step and the C/GMRES kernel: "
+        f"{fl.glue_per_step_us:.1f} us a control step ({fl.glue_per_run_s:.3f} s per run of "
+        f"{fl.steps_per_run:.0f} steps) = {glue_share:.0f} % of the loop "
+        f"({fl.loop_per_run_s:.3f} s a run)",
         f"  behaviour + controller step, worst run: p99 {d.step_p99_ms_worst:.3f} ms "
-        f"({d.step_p99_worst_run}), max {d.step_max_ms_worst:.3f} ms ({d.step_max_worst_run})",
-        f"  this machine's bound: the kernel and SUMO's step alone (no Python, no build) "
-        f"run a {d.duration_s:g} s run at x{compiled_only_factor(d, fl):.1f} real time",
+        f"({d.step_p99_worst_run}), max {d.step_max_ms_worst:.3f} ms ({d.step_max_worst_run}); "
+        f"p99 over the run's own C/GMRES outer update p99: worst "
+        f"x{d.step_p99_over_outer_p99_worst:.2f} ({d.step_p99_over_outer_p99_worst_run})",
     ]
-
-
-def compiled_only_factor(d: DenseRunFigures, fl: FloorFigures) -> float:
-    """Simulated time over the C/GMRES kernel's and SUMO's step's time per run: the
-    one-run real-time factor with every other part free (NaN when they took no time)."""
-    compiled = fl.kernel_per_run_s + fl.sumo_per_run_s
-    return d.duration_s / compiled if compiled > 0 else float("nan")
 
 
 def command_lines(c: CommandFigures, fl: FloorFigures | None, cpus: int | None,

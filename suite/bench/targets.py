@@ -3,13 +3,17 @@
 A :class:`Target` is a name, a unit, a comparison and a target value; :func:`judge`
 pairs it with the figure measured in this bench run (:class:`TargetResult`): met, not met,
 or not measured (a figure the run could not produce is not met). ``hwyeval bench`` exits
-1 when a result is not met (:func:`all_met`), unless ``--no-fail``.
+1 when a judged result is not met (:func:`all_met`), unless ``--no-fail``.
 
-Issue 25 (speed near the floor) gives six targets, on the dense target (two_loop,
-3 lanes, 2400 veh/h, a stalled car, logs on); issue 11 gives the two solver ratios
-(Ipopt against C/GMRES on the same OCP). Issue 11's whole-command target (x50), its
-controller-alone p99 (0.25 ms) and its ``--jobs 2`` ratio (x1.7 on the whole command)
-are replaced by issue 25's stricter ones.
+Issue 36 sets the speed targets *relative to this machine's floor, measured in the same
+bench run*: the floor is the real-time factor the dense target would reach if only the
+C/GMRES kernel and SUMO's step took time (the floor study), and a dense run must reach 70 %
+of it, the whole 24-run command 60 %. The step tail is held against the C/GMRES outer
+update's own p99 in the same run; the step max is judged only under ``--isolated`` (the
+bench pinned to one core, the other load listed), else only reported. Issue 25's
+absolute targets (x100 a run, x70 a command, 100 us of Python a step, 0.25 ms p99) are
+retired: on a shared machine they measured the machine. Issue 25's ``--jobs 2`` ratio and
+issue 11's two solver ratios (Ipopt against C/GMRES on the same OCP) stay.
 """
 
 from __future__ import annotations
@@ -30,13 +34,15 @@ class Comparison(Enum):
     AT_MOST = "<="
 
 
-UNITS = ("x", "us", "ms")  # ratio (real-time factor, speed-up), microseconds, milliseconds
+UNITS = ("x", "%", "us", "ms")  # ratio, share in per cent, microseconds, milliseconds
 
 
 @dataclass(frozen=True)
 class Target:
     """``name``'s measured value must be ``comparison`` ``target_value`` [``unit``];
-    ``what`` says which figure is judged, ``issue`` which issue set it."""
+    ``what`` says which figure is judged, ``issue`` which issue set it;
+    ``isolated_only``: judged only when the bench runs isolated (``--isolated``),
+    otherwise reported and kept out of the exit code."""
 
     name: str
     unit: str
@@ -44,6 +50,7 @@ class Target:
     target_value: float
     what: str
     issue: int
+    isolated_only: bool = False
 
     def __post_init__(self) -> None:
         if not self.name.isidentifier():
@@ -71,21 +78,25 @@ class Target:
         """``>= x100`` / ``<= 100 us``."""
         if self.unit == "x":
             return f"{self.comparison.value} x{self.target_value:g}"
+        if self.unit == "%":
+            return f"{self.comparison.value} {self.target_value:g} %"
         return f"{self.comparison.value} {self.target_value:g} {self.unit}"
 
 
 TARGETS: tuple[Target, ...] = (
-    Target("one_run_realtime_factor", "x", Comparison.AT_LEAST, 100.0,
-           "one dense run: simulated s / results.csv wall_s, median over the traffic seeds", 25),
-    Target("python_between_sumo_and_kernel_us", "us", Comparison.AT_MOST, 100.0,
-           "the Python between SUMO's step and the C/GMRES kernel, per control step "
-           "(the floor study)", 25),
-    Target("step_p99_ms_worst_run", "ms", Comparison.AT_MOST, 0.25,
-           "behaviour + controller step p99 (results.csv step_ms_p99), worst dense run", 25),
+    Target("one_run_share_of_floor", "%", Comparison.AT_LEAST, 70.0,
+           "one dense run's real-time factor (simulated s / results.csv wall_s, median over "
+           "the traffic seeds) over the floor's (the same runs' C/GMRES kernel and SUMO's "
+           "step alone, the floor study), in per cent", 36),
+    Target("command_share_of_floor_jobs1", "%", Comparison.AT_LEAST, 60.0,
+           "the whole hwyeval run command on the dense catalog (--jobs 1, logs on): its "
+           "real-time factor over the floor's, in per cent", 36),
+    Target("step_p99_over_outer_p99", "x", Comparison.AT_MOST, 1.5,
+           "behaviour + controller step p99 over the C/GMRES outer update's p99 "
+           "(results.csv step_ms_p99 / outer_ms_p99 of one run), the worst dense run", 36),
     Target("step_max_ms_worst_run", "ms", Comparison.AT_MOST, 1.0,
-           "behaviour + controller step max (results.csv step_ms_max), worst dense run", 25),
-    Target("command_realtime_factor_jobs1", "x", Comparison.AT_LEAST, 70.0,
-           "the whole hwyeval run command on the dense catalog, --jobs 1, logs on", 25),
+           "behaviour + controller step max (results.csv step_ms_max), worst dense run; "
+           "judged only with --isolated", 25, isolated_only=True),
     Target("jobs2_over_jobs1_scenario_phase", "x", Comparison.AT_LEAST, 1.8,
            "--jobs 1 / --jobs 2 time of the dense catalog's scenario phase", 25),
     Target("ipopt_over_cgmres_p50", "x", Comparison.AT_LEAST, 30.0,
@@ -120,11 +131,14 @@ class Measured:
 
 @dataclass(frozen=True)
 class TargetResult:
-    """A target and the value measured for it (NaN: not measured, ``why_not`` says why)."""
+    """A target and the value measured for it (NaN: not measured, ``why_not`` says why);
+    ``judged``: whether it counts for the exit code (an ``isolated_only`` target outside
+    ``--isolated`` is reported only)."""
 
     target: Target
     value: float
     why_not: str = ""
+    judged: bool = True
 
     @property
     def measured(self) -> bool:
@@ -144,13 +158,16 @@ class TargetResult:
         else:
             shown = f"{self.value:.3f} {t.unit}" if t.unit == "ms" else f"{self.value:.1f} {t.unit}"
         verdict = "met" if self.met else "NOT met"
+        if not self.judged:
+            verdict += " (reported, judged only with --isolated)"
         return f"TARGET {t.name}: {shown} (target {t.text()}; issue #{t.issue}) -> {verdict}"
 
 
-def judge(measured: Iterable[Measured], targets: tuple[Target, ...] = TARGETS
-          ) -> tuple[TargetResult, ...]:
+def judge(measured: Iterable[Measured], targets: tuple[Target, ...] = TARGETS,
+          isolated: bool = False) -> tuple[TargetResult, ...]:
     """One result per target, in :data:`TARGETS`' order: its measured value, or not
-    measured ("not part of this bench run") when ``measured`` has none for it."""
+    measured ("not part of this bench run") when ``measured`` has none for it; an
+    ``isolated_only`` target is judged only when ``isolated``."""
     names = {t.name for t in targets}
     by_name: dict[str, Measured] = {}
     for m in measured:
@@ -160,13 +177,14 @@ def judge(measured: Iterable[Measured], targets: tuple[Target, ...] = TARGETS
     out = []
     for t in targets:
         found = by_name.get(t.name)
+        judged = isolated or not t.isolated_only
         if found is None:
-            out.append(TargetResult(t, math.nan, "not part of this bench run"))
+            out.append(TargetResult(t, math.nan, "not part of this bench run", judged))
         else:
-            out.append(TargetResult(t, found.value, found.why_not))
+            out.append(TargetResult(t, found.value, found.why_not, judged))
     return tuple(out)
 
 
 def all_met(results: Iterable[TargetResult]) -> bool:
-    """Whether every result is met (an empty set: vacuously)."""
-    return all(r.met for r in results)
+    """Whether every judged result is met (an empty set: vacuously)."""
+    return all(r.met for r in results if r.judged)

@@ -12,7 +12,7 @@
     hwyeval compare BASE NEW [--out DIR] [--tolerances FILE] [--timing-gate] [--json]
     hwyeval view PATH [--failed] [--web [--port N] [--bind ADDR]]
     hwyeval bench [--out FILE] [--quick] [--seeds N] [--catalog-runs M] [--no-fail]
-                  [--controller-only]
+                  [--controller-only] [--isolated]
     hwyeval controllers [NAME] [--plugin MODULE ...]
     hwyeval --version
 
@@ -180,6 +180,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--controller-only", action="store_true",
                    help="only the plant-only controller timing (no SUMO, no Ipopt, no target "
                         "judged)")
+    s.add_argument("--isolated", action="store_true",
+                   help="pin the dense runs to one core (taskset), list the other load, and "
+                        "judge the step max (otherwise only reported)")
     s.set_defaults(func=cmd_bench)
     s = sub.add_parser("controllers", help="list registered controllers (NAME: its options)")
     s.add_argument("name", nargs="?", default=None)

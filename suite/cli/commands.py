@@ -184,6 +184,8 @@ def bench_options(args: argparse.Namespace) -> Any:
         opts = replace(opts, seeds=args.seeds)
     if args.catalog_runs is not None:
         opts = replace(opts, catalog_runs=args.catalog_runs)
+    if args.isolated:
+        opts = replace(opts, isolated=True)
     return opts
 
 
