@@ -13,42 +13,29 @@ Both head +X from (0, 0); lanes 3.5 m. By default the left edge of the carriagew
 stays straight (``spreadType="right"``: an edge's shape is its left edge), so the lanes
 that continue keep their place; ``spread="center"`` lays each edge's lanes about its
 axis instead, as OpenStreetMap imports do. Lengths in metres. Each builder returns the
-path of the written ``<name>.net.xml`` in ``out_dir``; netconvert warnings are errors.
+path of the written ``<name>.net.xml`` in ``out_dir``; netconvert warnings are errors
+(tests/plain_nets.py builds them, once per session for the same arguments).
 """
 
 from __future__ import annotations
 
 import math
-import os
-import subprocess
 from pathlib import Path
 
 import numpy as np
 
-from sumo_nets import LANE_WIDTH_M, sumo_home
-from sumo_nets.build import NETCONVERT_OPTIONS, netconvert_path
+from sumo_nets import LANE_WIDTH_M
+from sumo_nets.build import NETCONVERT_OPTIONS
+from tests.plain_nets import build_plain_net
 
 SPEED_MPS = 33.33
 
 
 def _netconvert(name: str, out_dir: Path, nod: str, edg: str, con: str,
                 extra: tuple[str, ...] = ()) -> Path:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    src = {"nod": out_dir / f"{name}.nod.xml", "edg": out_dir / f"{name}.edg.xml",
-           "con": out_dir / f"{name}.con.xml"}
-    src["nod"].write_text(f"<nodes>\n{nod}</nodes>\n")
-    src["edg"].write_text(f"<edges>\n{edg}</edges>\n")
-    src["con"].write_text(f"<connections>\n{con}</connections>\n")
-    out = out_dir / f"{name}.net.xml"
-    cmd = [str(netconvert_path()), "--node-files", str(src["nod"]), "--edge-files",
-           str(src["edg"]), "--connection-files", str(src["con"]), *NETCONVERT_OPTIONS,
-           *extra, "--output-file", str(out)]
-    res = subprocess.run(cmd, capture_output=True, text=True, check=False,
-                         env={**os.environ, "SUMO_HOME": sumo_home()})
-    msgs = (res.stdout + res.stderr).strip()
-    if res.returncode != 0 or "Warning" in msgs or "Error" in msgs:
-        raise RuntimeError(f"netconvert failed or warned for {name}:\n{msgs}")
-    return out
+    return build_plain_net(out_dir, name, f"<nodes>\n{nod}</nodes>\n",
+                           f"<edges>\n{edg}</edges>\n", f"<connections>\n{con}</connections>\n",
+                           (*NETCONVERT_OPTIONS, *extra), warnings_are_errors=True)
 
 
 def _edge(eid: str, frm: str, to: str, lanes: int, widths: dict[int, float] | None = None,

@@ -44,6 +44,7 @@ def _reasons(rec: RunRecord) -> list[str]:
     return [str(r) for r in rec.trace.decision.side_reason]
 
 
+@pytest.mark.slow
 def test_a_slower_car_in_the_passing_lane_is_followed(runs: dict[str, RunRecord]) -> None:
     rec = runs["follow_slower_car_in_passing_lane"]
     _passed(rec)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 import pickle
-import subprocess
 import textwrap
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from suite.catalog import (
     sweep_name,
     sweep_shorts,
 )
+from tests.plain_nets import PlainNet
 
 KNOWN = {"lane_keep", "sumo", "unregistered_ctrl"}
 DATA = Path(__file__).parent / "data" / "catalogs"
@@ -60,24 +60,10 @@ ego = { lane = 1, pos_m = 20.0, speed_mps = 20.0 }
 """
 
 
-def _netconvert() -> str:
-    sumo = pytest.importorskip("sumo")
-    exe = Path(sumo.SUMO_HOME) / "bin" / "netconvert"
-    if not exe.exists():
-        pytest.skip("netconvert not available")
-    return str(exe)
-
-
 @pytest.fixture(scope="module")
-def net_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def net_dir(tmp_path_factory: pytest.TempPathFactory, plain_net: PlainNet) -> Path:
     root = tmp_path_factory.mktemp("catalog")
-    nets = root / "nets"
-    nets.mkdir()
-    (nets / "test.nod.xml").write_text(NODES)
-    (nets / "test.edg.xml").write_text(EDGES)
-    subprocess.run([_netconvert(), "-n", str(nets / "test.nod.xml"), "-e",
-                    str(nets / "test.edg.xml"), "-o", str(nets / "test.net.xml")],
-                   check=True, capture_output=True)
+    plain_net(root / "nets", "test", NODES, EDGES)
     return root
 
 

@@ -19,6 +19,7 @@ from suite.catalog import CatalogError, RampTrafficSpec, TrafficSpec, load_catal
 from suite.catalog.traffic_checks import ramp_route
 from suite.road.network import RoadNetwork
 from suite.world.routes import RouteFile
+from tests.plain_nets import PlainNet
 
 KNOWN = {"lane_keep", "sumo"}
 
@@ -68,18 +69,9 @@ ego = { lane = 1, pos_m = 100.0, speed_mps = 25.0 }
 
 
 @pytest.fixture(scope="module")
-def net_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from sumo_nets.build import netconvert_path
-
+def net_dir(tmp_path_factory: pytest.TempPathFactory, plain_net: PlainNet) -> Path:
     root = tmp_path_factory.mktemp("traffic_catalog")
-    nets = root / "nets"
-    nets.mkdir()
-    for suffix, text in (("nod", NODES), ("edg", EDGES), ("con", CONNECTIONS)):
-        (nets / f"merge.{suffix}.xml").write_text(text)
-    subprocess.run([str(netconvert_path()), "-n", str(nets / "merge.nod.xml"),
-                    "-e", str(nets / "merge.edg.xml"), "-x", str(nets / "merge.con.xml"),
-                    "--no-turnarounds", "true", "-o", str(nets / "merge.net.xml")],
-                   check=True, capture_output=True)
+    plain_net(root / "nets", "merge", NODES, EDGES, CONNECTIONS, ("--no-turnarounds", "true"))
     return root
 
 

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 import tests.synthetic_runs as sr
 from suite.rerun.viewer import run_status
@@ -40,6 +41,7 @@ def test_report_on_a_missing_directory_is_invalid_input(tmp_path: Path) -> None:
     assert "nowhere" in proc.stderr
 
 
+@pytest.mark.slow
 def test_compare_gate_exit_codes(tmp_path: Path) -> None:
     base = tmp_path / "base"
     sr.make_catalog(base)

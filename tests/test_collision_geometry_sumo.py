@@ -180,6 +180,7 @@ def _front_bumper(rec: RunRecord) -> tuple[np.ndarray, np.ndarray]:
     return ego.x_m + d * np.cos(ego.psi_rad), ego.y_m + d * np.sin(ego.psi_rad)
 
 
+@pytest.mark.slow
 def test_a_collision_only_sumo_reports_is_no_collision(out: Path) -> None:
     rec = _run(out, "cut_back_ahead_of_stalled")
     reports = [c for c in rec.outcome.sumo_collisions if STALLED in (c.collider, c.victim)]

@@ -159,6 +159,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow
 def test_the_cli_json_kinds_the_same_night_and_the_default_output(base: Path,
                                                                    tmp_path: Path) -> None:
     new = _night(base, tmp_path, _same, {"max_abs_lat_acc_mps2": 0.01})
@@ -192,6 +193,7 @@ def test_rows_link_to_both_runs_pages(base: Path, tmp_path: Path) -> None:
     assert f"base/{page}" in html and f"new/{page}" in html
 
 
+@pytest.mark.slow
 def test_a_misspelt_metric_in_the_tolerances_exits_2(base: Path, tmp_path: Path) -> None:
     new = _night(base, tmp_path, _same)
     typo = tmp_path / "tol.toml"

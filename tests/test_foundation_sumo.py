@@ -80,6 +80,7 @@ def _results(out: Path) -> pd.DataFrame:
     return pd.read_csv(out / "results.csv").set_index("scenario")
 
 
+@pytest.mark.slow
 def test_run_exit_code_is_one_when_anything_fails(catalog_run) -> None:
     out, proc = catalog_run
     assert proc.returncode == 1, proc.stdout + proc.stderr
@@ -165,6 +166,7 @@ def test_junit_has_one_testcase_per_scenario(catalog_run) -> None:
     assert len(list(cases)) == 4
 
 
+@pytest.mark.slow
 def test_same_seed_same_catalog_gives_identical_results(catalog_run, tmp_path: Path) -> None:
     out, _ = catalog_run
     catalog = out.parent / "foundation.toml"
@@ -226,6 +228,7 @@ BAD_CATALOGS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(BAD_CATALOGS))
 def test_bad_catalog_exits_2_naming_file_scenario_and_key(case: str, tmp_path: Path) -> None:
     body, key = BAD_CATALOGS[case]

@@ -27,6 +27,8 @@ import tests.synthetic_runs as sr
 from reports.record import RunOutcome, StalledVehicle, SumoCollision, load_run
 from suite.cli import main
 
+pytestmark = pytest.mark.slow
+
 N_RECORDS = 200
 FILES = ("run.json", "road.json", "trace.parquet", "series.parquet", "neighbours.parquet",
          "controller_arrays.npz", "traceback.txt")

@@ -210,6 +210,7 @@ def test_sql_is_read_only(tmp_path: Path) -> None:
     assert counts(db) == (1, 2)
 
 
+@pytest.mark.slow
 def test_two_history_add_processes_at_once_both_land_whole(tmp_path: Path) -> None:
     db = tmp_path / "h.duckdb"
     outs = [output_dir(tmp_path / f"night{k}", f"2026-11-0{k}T03:00:00+00:00")
@@ -226,6 +227,7 @@ def test_two_history_add_processes_at_once_both_land_whole(tmp_path: Path) -> No
     assert run_sql(db, "SELECT count(*) FROM schema_version").rows == ((SCHEMA_VERSION,),)
 
 
+@pytest.mark.slow
 def test_a_writer_waits_for_the_lock_and_gives_up_with_exit_2(tmp_path: Path) -> None:
     db = tmp_path / "h.duckdb"
     add_night(db, synthetic_night(1, ["pass"]))
@@ -240,6 +242,7 @@ def test_a_writer_waits_for_the_lock_and_gives_up_with_exit_2(tmp_path: Path) ->
     assert counts(db) == (2, 6)
 
 
+@pytest.mark.slow
 def test_cli_exit_codes_and_json(tmp_path: Path) -> None:
     db = tmp_path / "h.duckdb"
     missing = hwyeval("history", "add", str(db), str(tmp_path / "nope"))
@@ -268,6 +271,7 @@ def test_cli_exit_codes_and_json(tmp_path: Path) -> None:
     assert sql.returncode == 0 and sql.stdout.split() == ["n", "5"]
 
 
+@pytest.mark.slow
 def test_compare_against_the_last_night_of_the_catalog_or_the_last_pass(
         tmp_path: Path) -> None:
     db = tmp_path / "h.duckdb"

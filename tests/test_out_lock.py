@@ -91,6 +91,7 @@ def test_one_process_may_write_inside_a_directory_it_holds(tmp_path: Path) -> No
         pass
 
 
+@pytest.mark.slow
 @pytest.mark.sumo
 def test_a_second_run_into_the_same_out_exits_2_and_writes_nothing(tmp_path: Path) -> None:
     catalog = tmp_path / "cat.toml"

@@ -127,6 +127,7 @@ def _run(tmp_path: Path, *extra: str) -> pd.DataFrame:
     return results
 
 
+@pytest.mark.slow
 @installed
 @pytest.mark.sumo
 def test_entry_point_and_bare_module_plugins_run_to_pass_locally(tmp_path: Path) -> None:

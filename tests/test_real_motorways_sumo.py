@@ -78,6 +78,7 @@ def free_drives(tmp_path_factory: pytest.TempPathFactory
     return out, pd.read_csv(out / "results.csv").set_index("scenario"), expected
 
 
+@pytest.mark.slow
 def test_free_drives_in_every_through_lane_pass(free_drives) -> None:
     _, results, expected = free_drives
     assert set(results.index) == set(expected)

@@ -50,6 +50,7 @@ def test_sweep_suffixes_that_make_a_name_too_long_are_an_input_error(tmp_path: P
     assert "sweep variants" in line
 
 
+@pytest.mark.slow
 @pytest.mark.sumo
 def test_the_longest_allowed_name_runs(tmp_path: Path) -> None:
     name = "n" * MAX_NAME_LEN
@@ -79,6 +80,7 @@ def test_stalled_cars_sumo_would_refuse_are_input_errors(tmp_path: Path, stalled
     assert "clear of" in issue
 
 
+@pytest.mark.slow
 @pytest.mark.sumo
 def test_a_stalled_car_close_ahead_of_a_fast_ego_runs_without_an_error(tmp_path: Path) -> None:
     """W6: 40-90 m ahead of a 25 m/s ego: SUMO refused to insert the ego at runtime."""

@@ -40,6 +40,7 @@ def _tiny(tmp_path: Path, names: tuple[str, ...] = ("tiny_a",), duration_s: floa
                          duration_s=duration_s)
 
 
+@pytest.mark.slow
 def test_run_into_an_earlier_output_is_refused_and_loses_nothing(tmp_path: Path) -> None:
     """W2: re-running into an existing --out mixed the earlier runs into every report."""
     out = sr.make_catalog(tmp_path / "earlier")
@@ -53,6 +54,7 @@ def test_run_into_an_earlier_output_is_refused_and_loses_nothing(tmp_path: Path)
     assert _snapshot(out) == before
 
 
+@pytest.mark.slow
 @pytest.mark.sumo
 def test_overwrite_reports_exactly_the_new_runs_and_the_exit_code_covers_them(
         tmp_path: Path) -> None:
@@ -70,6 +72,7 @@ def test_overwrite_reports_exactly_the_new_runs_and_the_exit_code_covers_them(
     assert manifest["scenarios"] == ["tiny_a"]
 
 
+@pytest.mark.slow
 def test_overwrite_refuses_a_directory_that_is_not_an_hwyeval_output(tmp_path: Path) -> None:
     home = tmp_path / "home"
     (home / ".ssh").mkdir(parents=True)
@@ -82,6 +85,7 @@ def test_overwrite_refuses_a_directory_that_is_not_an_hwyeval_output(tmp_path: P
     assert _snapshot(home) == before
 
 
+@pytest.mark.slow
 def test_resume_refuses_an_output_holding_runs_of_other_scenarios(tmp_path: Path) -> None:
     out = sr.make_catalog(tmp_path / "other")
     before = _snapshot(out)
@@ -99,6 +103,7 @@ def test_resume_and_overwrite_exclude_each_other(tmp_path: Path) -> None:
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["file", "under_a_file", "dangling_link"])
 def test_out_that_is_or_lies_under_a_file_exits_2_before_writing(tmp_path: Path,
                                                                   case: str) -> None:
@@ -118,6 +123,7 @@ def test_out_that_is_or_lies_under_a_file_exits_2_before_writing(tmp_path: Path,
         assert blocker.read_text() == "a file"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["report.html", "results.csv", "junit.xml", "report-runs"])
 def test_a_report_target_that_is_not_a_file_exits_2(tmp_path: Path, name: str) -> None:
     """W13: report.html a directory: traceback, rc 1 (run --resume, and report)."""
@@ -226,6 +232,7 @@ def test_check_out_dir_writes_nothing(tmp_path: Path) -> None:
         check_out_dir(tmp_path, "fresh", ["a"])
 
 
+@pytest.mark.slow
 @pytest.mark.sumo
 def test_resume_after_a_catalog_change_reruns_only_the_changed_scenario(tmp_path: Path) -> None:
     out = tmp_path / "out"

@@ -45,6 +45,7 @@ RUN_JSON_DAMAGE = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(RUN_JSON_DAMAGE))
 def test_report_marks_a_malformed_run_json_as_an_error(tmp_path: Path, case: str) -> None:
     """W10: report crashed on run.json a list or null, stalled not a list, ..., after
@@ -73,6 +74,7 @@ def test_report_marks_a_malformed_run_json_as_an_error(tmp_path: Path, case: str
     assert "two" in (out / "report.html").read_text()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("road", ["[]", "null", '{"lanes": "x"}', '{"lanes": [{"id": 1}]}',
                                   '{"reference_xy_m": [[1, 2, 3]]}', "{", ""])
 def test_report_marks_a_malformed_road_json_as_an_error(tmp_path: Path, road: str) -> None:
@@ -95,6 +97,7 @@ def test_compare_refuses_two_directories_of_one_run(tmp_path: Path) -> None:
     assert "Traceback" not in proc.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sides", ["empty_empty", "empty_base", "nothing_matches"])
 def test_compare_with_nothing_to_compare_exits_2(tmp_path: Path, sides: str) -> None:
     """W11: compare exited 0 when nothing matched (empty vs empty, empty baseline)."""
@@ -110,6 +113,7 @@ def test_compare_with_nothing_to_compare_exits_2(tmp_path: Path, sides: str) -> 
     assert "Traceback" not in proc.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text", ["nonsense = 1", "[metrics", 'metrics = "x"', "timing = [1]",
                                   "[metrics.min_gap_m]\nabs = \"far\"", "gate_kinds = 3",
                                   "timing_gate = 1", "[timing]\nstep_ms_p99 = 0.5", "\xff"])
@@ -124,6 +128,7 @@ def test_compare_with_bad_tolerances_exits_2(tmp_path: Path, text: str) -> None:
     assert "--tolerances" in proc.stderr and "Traceback" not in proc.stderr
 
 
+@pytest.mark.slow
 def test_compare_with_a_missing_or_directory_tolerances_exits_2(tmp_path: Path) -> None:
     base = _two_runs(tmp_path / "base")
     new = _two_runs(tmp_path / "new")

@@ -14,7 +14,7 @@ from browser import check_tick_labels, chromium, console_errors, needs_chromium,
 from reports import write_reports
 from suite.rerun.log import write_rrd
 
-pytestmark = needs_chromium
+pytestmark = [*needs_chromium, pytest.mark.slow]
 
 
 @pytest.fixture()

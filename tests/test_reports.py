@@ -211,6 +211,7 @@ def test_decimation_keeps_extremes() -> None:
     assert yd.max() == 50.0 and np.all(np.diff(xd) > 0)
 
 
+@pytest.mark.slow
 def test_html_size_for_a_large_catalog(tmp_path: Path) -> None:
     out = tmp_path / "big"
     for i in range(100):

@@ -47,6 +47,7 @@ def two_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return outs[0], outs[1]
 
 
+@pytest.mark.slow
 def test_entity_paths_of_a_real_run(two_runs) -> None:
     run_dir, _ = two_runs
     paths = {c.entity_path for c in read_chunks(run_dir / "run.rrd")}

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +16,7 @@ from suite.road.network import (
     is_shoulder_permissions,
 )
 from suite.road.record import route_lane_records
+from tests.plain_nets import PlainNet
 
 # A 3-lane road with a hard shoulder on e0, a curve on e1, a lane drop to 2 lanes on e2
 # (the right lane of e1 ends), 3 lanes again on e3, and a short side branch from b.
@@ -55,30 +55,13 @@ RING_EDGES = """<edges>
 </edges>"""
 
 
-def netconvert() -> str:
-    sumo = pytest.importorskip("sumo")
-    exe = Path(sumo.SUMO_HOME) / "bin" / "netconvert"
-    if not exe.exists():
-        pytest.skip("netconvert not available")
-    return str(exe)
-
-
-def build_net(directory: Path, name: str, nodes: str, edges: str) -> Path:
-    directory.mkdir(parents=True, exist_ok=True)
-    nod = directory / f"{name}.nod.xml"
-    edg = directory / f"{name}.edg.xml"
-    out = directory / f"{name}.net.xml"
-    nod.write_text(nodes)
-    edg.write_text(edges)
-    subprocess.run([netconvert(), "-n", str(nod), "-e", str(edg), "-o", str(out),
-                    "--no-turnarounds", "true"], check=True, capture_output=True)
-    return out
+NO_TURNAROUNDS = ("--no-turnarounds", "true")
 
 
 @pytest.fixture(scope="module")
-def mixed(tmp_path_factory: pytest.TempPathFactory) -> RoadNetwork:
-    return RoadNetwork.load(build_net(tmp_path_factory.mktemp("nets"), "mixed", MIXED_NODES,
-                                      MIXED_EDGES))
+def mixed(tmp_path_factory: pytest.TempPathFactory, plain_net: PlainNet) -> RoadNetwork:
+    return RoadNetwork.load(plain_net(tmp_path_factory.mktemp("nets"), "mixed", MIXED_NODES,
+                                      MIXED_EDGES, options=NO_TURNAROUNDS))
 
 
 ROUTE = ("e0", "e1", "e2", "e3")
@@ -129,8 +112,9 @@ def test_default_route_is_longest_path(mixed: RoadNetwork) -> None:
 
 
 @pytest.mark.sumo
-def test_default_route_with_cycle_terminates(tmp_path: Path) -> None:
-    net = RoadNetwork.load(build_net(tmp_path, "ring", RING_NODES, RING_EDGES))
+def test_default_route_with_cycle_terminates(tmp_path: Path, plain_net: PlainNet) -> None:
+    net = RoadNetwork.load(plain_net(tmp_path, "ring", RING_NODES, RING_EDGES,
+                                     options=NO_TURNAROUNDS))
     route = net.default_route()
     assert len(set(route)) == len(route)  # a simple path
     net.validate_route(route)

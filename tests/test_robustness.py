@@ -8,6 +8,7 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -39,6 +40,7 @@ def judged(metric_values: dict[str, float], limit_values: dict[str, float | None
                    criteria=crit.as_dict())
 
 
+@pytest.mark.slow
 @settings(max_examples=400, deadline=None)
 @given(st.fixed_dictionaries({m: values for m in METRICS}),
        st.fixed_dictionaries({c: limits for c in CRITERIA_METRICS}))

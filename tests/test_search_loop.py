@@ -96,6 +96,7 @@ def _key(result: Any) -> list[tuple[Any, ...]]:
     return [(t.trial, t.values, t.status, t.robustness) for t in result.trials]
 
 
+@pytest.mark.slow
 def test_tpe_finds_the_planted_region_random_sampling_rarely_does(family: Family,
                                                                   tmp_path: Path) -> None:
     found_tpe = found_random = 0
@@ -122,6 +123,7 @@ def test_deterministic_for_a_seed_and_batch(family: Family, tmp_path: Path,
     assert [t.values for t in a.trials] != [t.values for t in c.trials]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sampler", SAMPLERS)
 @pytest.mark.parametrize("jobs", [1, 3])
 def test_resume_after_an_interruption_equals_an_uninterrupted_search(

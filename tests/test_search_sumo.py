@@ -60,6 +60,7 @@ def searched(catalog: Path) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_found_toml_replays_with_the_same_status_and_robustness(searched: Path) -> None:
     found = [r for r in rows(searched / "search.csv") if r["found"]]
     assert found
@@ -77,6 +78,7 @@ def test_found_toml_replays_with_the_same_status_and_robustness(searched: Path) 
         assert float(again["robustness"]) < 0.0
 
 
+@pytest.mark.slow
 def test_every_trial_is_a_run_directory_the_reports_read(searched: Path) -> None:
     trials = [r for r in rows(searched / "search.csv") if r["kind"] == "trial"]
     assert len(trials) == 6
@@ -93,6 +95,7 @@ def test_every_trial_is_a_run_directory_the_reports_read(searched: Path) -> None
                    "--out", str(searched.parent / "cmp")).returncode == 0
 
 
+@pytest.mark.slow
 def test_resume_refuses_other_settings(searched: Path, catalog: Path) -> None:
     done = hwyeval("search", str(catalog), "--out", str(searched), "--budget", "6",
                    "--jobs", "2", "--seed", "1", "--resume", "--no-log")
@@ -105,6 +108,7 @@ def _key(path: Path) -> list[tuple[str, ...]]:
     return [tuple(r.values()) for r in rows(path)]
 
 
+@pytest.mark.slow
 def test_ctrl_c_then_resume_equals_the_uninterrupted_search(catalog: Path) -> None:
     common = ["--budget", "6", "--jobs", "1", "--no-log", "--seed", "4", "--no-shrink"]
     whole = catalog.parent / "whole"

@@ -30,7 +30,7 @@ from tests.reliability_support import (
 
 # serial: a stop races the scenario processes' own ends; a busy second core (another test
 # worker) once left a staging directory behind (docs/architecture.md, Tests)
-pytestmark = [pytest.mark.sumo, pytest.mark.serial]
+pytestmark = [pytest.mark.sumo, pytest.mark.serial, pytest.mark.slow]
 
 N_SHORT = 6
 

@@ -205,6 +205,7 @@ def _files(root: Path) -> dict[str, bytes]:
             if p.is_file() and p.name != "stress.json"}
 
 
+@pytest.mark.slow
 def test_small_catalog_is_valid_covers_everything_and_is_deterministic(tmp_path: Path
                                                                        ) -> None:
     real_dir = REAL_DIR if REAL else None

@@ -366,6 +366,7 @@ print("RESULT " + json.dumps(out))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.sumo
 @pytest.mark.parametrize("name", NAMES)
 def test_loads_and_drives_in_libsumo(name: str) -> None:

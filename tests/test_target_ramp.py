@@ -179,6 +179,7 @@ def test_a_set_speed_changed_later_is_a_ramp_both_ways() -> None:
     assert run.diagnostic("ocp_target_speed_mps")[0] == pytest.approx(25.0)
 
 
+@pytest.mark.slow
 def test_ipopt_baseline_ramps_the_same_way() -> None:
     pytest.importorskip("casadi")
     from controllers.baselines.ipopt_nmpc import make_ipopt_nmpc

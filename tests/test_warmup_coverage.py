@@ -73,6 +73,7 @@ print(json.dumps({{"loads": loads, "statuses": statuses,
 """
 
 
+@pytest.mark.slow
 def test_a_scenario_after_the_preload_loads_no_kernel(tmp_path: Path) -> None:
     catalog = tmp_path / "c.toml"
     catalog.write_text(CATALOG)
