@@ -1,5 +1,5 @@
-"""The workers' forkserver starts before the catalog is read (suite/cli/run.py,
-``_EarlyWarmUp``): a command that ends before it runs anything (a catalog error, an
+"""The workers' forkserver starts before the catalog is read (suite/exec/catalog_run.py,
+``EarlyWarmUp``): a command that ends before it runs anything (a catalog error, an
 output directory refused, a resume with nothing left to run) leaves no process behind,
 and one that runs still runs and reports as before."""
 
@@ -20,7 +20,7 @@ from tests.reliability_support import (
     write_catalog,
 )
 
-pytestmark = pytest.mark.sumo
+pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 
 
 def _gone_within(marker: str, seconds: float) -> list[int]:

@@ -16,7 +16,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 SCRIPT = """
 import json, sys
-import suite.cli.run, suite.cli.progress, suite.exec.outdir, suite.exec.executors
+import suite.cli.run, suite.exec.catalog_run, suite.exec.progress
+import suite.exec.outdir, suite.exec.executors, suite.exec.build
 import reports.manifest
 from suite.run.options import RunOptions
 from suite.exec.jobs import RunJob

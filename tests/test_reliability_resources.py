@@ -16,8 +16,7 @@ from pathlib import Path
 import pytest
 
 import tests.synthetic_runs as sr
-from suite.cli.progress import short_summary
-from suite.cli.run import exit_of
+from suite.exec.catalog_run import exit_of
 from suite.exec.executors import RunJob
 from suite.exec.memory import (
     ENV,
@@ -28,6 +27,7 @@ from suite.exec.memory import (
     memory_cap_from,
     ran_out_of_memory,
 )
+from suite.exec.progress import short_summary
 from suite.run.runner import RunOptions
 from tests.reliability_support import ROOT, hwyeval, results, scenario_toml, write_catalog
 

@@ -16,9 +16,9 @@ from controllers import registry
 from reports.record import load_run
 from suite.catalog import ControllerSpec, load_catalog
 from suite.cli import main
-from suite.cli.common import Plugins
-from suite.cli.run import build_jobs
 from suite.exec import budget, local
+from suite.exec.build import build_jobs
+from suite.exec.command import Plugins
 from suite.exec.executors import LocalExecutor, RunJob
 from suite.run.runner import RunOptions
 from tests.reliability_support import hwyeval, plugin_file, scenario_toml, write_catalog
@@ -41,6 +41,7 @@ def _no_metric_values(record_dir: Path) -> None:
     assert record.verdict.failures == ()
 
 
+@pytest.mark.slow
 def test_every_job_gets_a_finite_budget_and_the_default_ends_a_run(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -65,6 +66,7 @@ def test_every_job_gets_a_finite_budget_and_the_default_ends_a_run(
     _no_metric_values(out / "stopped")
 
 
+@pytest.mark.slow
 def test_a_duration_no_run_can_hold_is_refused_at_validation(tmp_path: Path) -> None:
     """W5: duration_s = 1e9 (2e10 steps) is an input error naming the key, not a hang or
     a MemoryError in the scenario process."""
@@ -98,6 +100,7 @@ def test_a_worker_killed_at_the_start_of_a_rerun_inherits_nothing(tmp_path: Path
     _no_metric_values(out / "victim")
 
 
+@pytest.mark.slow
 def test_killed_and_timed_out_runs_carry_their_controller_and_nan_metrics(
         tmp_path: Path) -> None:
     """W16: an empty controller, and collision = 0.0 in results.csv for runs without a
@@ -126,6 +129,7 @@ def test_killed_and_timed_out_runs_carry_their_controller_and_nan_metrics(
     assert lane_keep["sum_collision"].iloc[0] == 0.0 and lane_keep["runs"].iloc[0] == 2
 
 
+@pytest.mark.slow
 def test_a_process_that_hangs_before_its_loop_is_killed_at_its_budget(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The executor's backstop: the runner cannot stop a run that never reaches its loop."""

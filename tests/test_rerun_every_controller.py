@@ -25,7 +25,7 @@ from rerun_fixtures import make_record, read_chunks
 import suite.rerun.log as rerun_log
 from reports.record import RRD, ControllerArrays, load_run, write_run
 from reports.write import write_reports
-from suite.cli.progress import short_summary, status_line
+from suite.exec.progress import short_summary, status_line
 from suite.run import runner
 from suite.run.options import RunOptions
 

@@ -19,10 +19,10 @@ from typing import Any
 
 import pytest
 
-from suite.cli.search import SearchOutput, verdict_lines
 from suite.search.journal import JournalError
 from suite.search.journal_check import check_journal
 from suite.search.loop import FamilyResult, TrialResult
+from suite.search.outcome import SearchOutput, verdict_lines
 from suite.search.space import Family, load_search_catalog
 from tests.reliability_support import ROOT
 from tests.test_search_loop import CATALOG, _search

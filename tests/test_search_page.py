@@ -6,7 +6,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from reports.html.search import SearchRow, read_search_csv, write_search_csv, write_search_page
+from reports.html.search import write_search_page
+from reports.record.search import SearchRow, read_search_csv, write_search_csv
 
 
 def _rows() -> list[SearchRow]:

@@ -20,8 +20,8 @@ from reports.html.links import Links
 from reports.record import SumoCollision, write_run
 from reports.tables import collect_runs
 from suite.catalog import CatalogError, load_catalog
-from suite.cli.progress import reason
-from suite.cli.search import SearchOutput
+from suite.exec.progress import reason
+from suite.search.outcome import SearchOutput
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -5,8 +5,9 @@ Reads the paper's runs in DIR and writes ``DIR/paper.html`` (the figures, their
 numbers, the paper's values beside ours and which findings hold), ``DIR/paper.json``
 and ``DIR/paper.csv``, then prints the README's Results block (the numbers and the
 findings as Markdown tables) exactly as the README shows it. With ``--run`` it first
-runs the catalog into DIR (``hwyeval run CATALOG --out DIR --overwrite --no-log``):
-one command regenerates the README's numbers.
+runs the catalog into DIR as ``hwyeval run CATALOG --out DIR --overwrite --no-log``
+does (:func:`suite.exec.catalog_run.run_catalog`): one command regenerates the README's
+numbers.
 
 Exit codes: 0 the page was written (whether or not each finding holds: that is the
 result, not an error); 2 DIR holds no paper run, or the run's input was invalid; 130 /
@@ -39,13 +40,14 @@ def add_paper_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -
 
 
 def _run_catalog(catalog: str, out: Path, jobs: int) -> int:
-    """``hwyeval run CATALOG --out DIR --overwrite --no-log --jobs N``, parsed by the
-    run command's own parser (its defaults for everything else)."""
-    from suite.cli import build_parser
+    """``hwyeval run CATALOG --out DIR --overwrite --no-log --jobs N`` (run's defaults for
+    everything else): :func:`suite.exec.catalog_run.run_catalog`, its exit code."""
+    from suite.exec.build import RunSettings
+    from suite.exec.catalog_run import CatalogRunOptions, run_catalog
 
-    args = build_parser().parse_args(["run", catalog, "--out", str(out), "--overwrite",
-                                      "--no-log", "--jobs", str(jobs)])
-    return int(args.func(args))
+    options = CatalogRunOptions(catalog=catalog, out=str(out), mode="overwrite",
+                                settings=RunSettings(jobs=jobs, no_log=True))
+    return run_catalog(options, Output()).exit_code
 
 
 def cmd_paper(args: argparse.Namespace) -> int:

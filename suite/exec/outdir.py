@@ -37,6 +37,7 @@ from reports.record.run import (
     remove_path,
 )
 from suite import __version__
+from suite.exec.command import OUT_MODES
 from suite.exec.jobs import RunJob
 from suite.run.code_identity import CODE_KEY, CONTROLLER_KEY
 from suite.run.info import CONTENT_KEY
@@ -44,7 +45,7 @@ from suite.run.info import CONTENT_KEY
 __all__ = ["MODES", "REPORT_DIRS", "REPORT_FILES", "OutPlan", "OutputDirError", "ResumePlan",
            "check_out_dir", "check_report_targets", "prepare_out_dir", "resume_plan"]
 
-MODES = ("fresh", "resume", "overwrite")
+MODES = OUT_MODES
 REPORT_FILES = ("manifest.json", "results.csv", "summary.csv", "junit.xml", "report.html")
 REPORT_DIRS = ("report-runs",)
 FINISHED = ("pass", "fail")  # statuses --resume keeps

@@ -6,7 +6,7 @@ concrete ``[[scenario]]`` per failure mode of each family, its shrunk point
 from, with the family's ``[defaults]`` merged in (self-contained: copy it into a
 regression catalog as it is) and no search table; a comment above each names its mode,
 robustness and the run it reproduces. A ``net`` given as a path is rewritten relative to
-the directory of found.toml. ``search.csv``: :mod:`reports.html.search`.
+the directory of found.toml. ``search.csv``'s rows: :mod:`reports.record.search`.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from reports.html.search import SearchRow, write_search_csv
 from reports.record.codec import write_text_atomic
+from reports.record.search import SEARCH_CSV, SearchRow, write_search_csv
 from suite.catalog.nets import bundled_nets
 from suite.catalog.toml_write import toml_key, toml_value
 from suite.search.loop import FamilyResult, TrialResult
@@ -91,4 +91,4 @@ def write_search(results: Sequence[FamilyResult],
                  shrinks: Mapping[str, tuple[list[Shrunk], list[TrialResult]]],
                  out: Path) -> Path:
     """Write ``out/search.csv``."""
-    return write_search_csv(search_rows(results, shrinks), out / "search.csv")
+    return write_search_csv(search_rows(results, shrinks), out / SEARCH_CSV)

@@ -26,7 +26,7 @@ from typing import Any
 
 from reports.expectation import XPASSED, expectation, fails_night, xfail_of
 from reports.record import RunRecord
-from suite.cli.common import Output
+from suite.exec.command import Printer
 
 HEARTBEAT_S = 15.0
 MAX_REASONS = 2
@@ -100,7 +100,7 @@ def _clock(seconds: float) -> str:
 class RunProgress:
     """Progress of a catalog run (module doc). Use as a context manager."""
 
-    def __init__(self, out: Output, total: int, workers: int, tty: bool) -> None:
+    def __init__(self, out: Printer, total: int, workers: int, tty: bool) -> None:
         self.out = out
         self.total = total
         self.workers = max(1, min(workers, total))
