@@ -224,7 +224,7 @@ def _unknown_key(path: str, key: str, fields: Sequence[str]) -> ConfigError:
                        key)
 
 
-def _build(cls: type[P], table: Any, path: str) -> P:
+def _build(cls: type[P], table: Any, path: str) -> P:  # noqa: C901 (issue 37: still to split)
     """``cls`` from ``table``; every unknown key and bad value of the table and its
     sections is collected and raised together (:attr:`ConfigError.more`)."""
     if not isinstance(table, Mapping):

@@ -57,7 +57,7 @@ def ego_xy(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x, y
 
 
-def _trace(steps: int, dt: float, seed: int, collision: bool) -> Trace:
+def _trace(steps: int, dt: float, seed: int, collision: bool) -> Trace:  # noqa: PLR0915
     rng = np.random.default_rng(seed)
     tr = Trace.allocate(steps, EXTRA)
     t = (tr.step + 1) * dt

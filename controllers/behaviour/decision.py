@@ -42,13 +42,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import numpy.typing as npt
 
-from controllers.behaviour.following import FollowParams, follow_speed_mps
+from controllers.behaviour.following import follow_speed_mps
 from controllers.behaviour.lane_change import (
-    LaneChangeParams,
     change_duration_s,
     decel_needed_mps2,
     lane_change_safety,
 )
+from controllers.behaviour.lane_plan import BehaviourParams, EgoShape, _Plan, _Want
 from controllers.behaviour.obstacle_choice import pass_side, plan_ellipses, select_obstacles
 from controllers.behaviour.perception import (
     LaneScene,
@@ -68,59 +68,13 @@ from controllers.behaviour.types import (
 )
 from controllers.path.frenet import FrenetPath
 
+__all__ = ["BehaviourParams", "EgoShape", "LaneBehaviour"]
+
+
 IntpArray = npt.NDArray[np.intp]
+
+
 _LANE_CHANGE_RATE_MPS = 1.2  # lateral speed of a change, for "can the ego clear it in time"
-
-
-@dataclass(frozen=True)
-class EgoShape:
-    """The ego's box [m] and whether it may use a hard shoulder."""
-
-    length_m: float
-    width_m: float
-    allow_shoulder: bool = False
-
-
-@dataclass(frozen=True)
-class BehaviourParams:
-    """Car following and lane changing (see their modules for the units)."""
-
-    follow: FollowParams = field(default_factory=FollowParams)
-    lane_change: LaneChangeParams = field(default_factory=LaneChangeParams)
-
-
-@dataclass(frozen=True)
-class _Plan:
-    """The lane plan: ``lane`` held (``origin == lane``) or moved into from ``origin``,
-    since ``since_s``; ``passing``: the vehicle being passed ('' none); ``end_s_m``: the
-    path position where the change's stretch ends (what its gap rules were checked
-    over, and are re-checked over until the commit point)."""
-
-    lane: int
-    origin: int
-    since_s: float
-    passing: str = ""
-    evasive: bool = False
-    end_s_m: float = math.nan
-
-    @property
-    def changing(self) -> bool:
-        return self.lane != self.origin
-
-
-@dataclass(frozen=True)
-class _Want:
-    """A wanted change: target lane, where the manoeuvre ends (path s), why (text), whether
-    it may skip the hold time, the vehicle it passes ('' none), whether it evades a
-    stopped vehicle that the ego cannot stop for comfortably, and why (the code)."""
-
-    target: int
-    end_s_m: float
-    why: str
-    urgent: bool
-    passing: str = ""
-    evasive: bool = False
-    kind: Reason = Reason.PASS
 
 
 @dataclass
@@ -518,4 +472,3 @@ class LaneBehaviour:
         return bool(t_reach > t_lateral and abs(goal - start) > 0.0)
 
 
-__all__ = ["BehaviourParams", "EgoShape", "LaneBehaviour"]

@@ -128,7 +128,7 @@ def decel_needed_mps2(closing_mps: float, gap_m: float, standstill_m: float) -> 
     return math.inf if room <= 0.0 else closing_mps**2 / (2.0 * room)
 
 
-def lane_change_safety(scene: LaneScene, target: int, end_s_m: float, p: LaneChangeParams,
+def lane_change_safety(scene: LaneScene, target: int, end_s_m: float, p: LaneChangeParams,  # noqa: PLR0911
                        decel_bound_mps2: float, allow_shoulder: bool
                        ) -> tuple[bool, str, LaneCheck]:
     """(safe, why, check) for moving into relative lane ``target`` for a manoeuvre that

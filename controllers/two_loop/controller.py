@@ -229,7 +229,7 @@ class TwoLoopController:
         e = (tha - g + math.pi) % (2.0 * math.pi) - math.pi
         return np.array([on_path.s_m, on_path.lat_m, g + e])
 
-    def step(self, observation: Observation) -> Command:
+    def step(self, observation: Observation) -> Command:  # noqa: C901, PLR0912, PLR0915
         if self.path is None or self.planner is None:
             raise RuntimeError("TwoLoopController.step called before reset")
         t_outer0 = time.perf_counter()

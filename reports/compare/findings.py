@@ -212,7 +212,7 @@ def _metric_pairs(b: RunEntry, n: RunEntry) -> list[tuple[MetricValue, MetricVal
     return [(base[m.name], m) for m in n.metrics if m.name in base]
 
 
-def _tolerance_row(key: str, n: RunEntry, mb: MetricValue, mn: MetricValue,
+def _tolerance_row(key: str, n: RunEntry, mb: MetricValue, mn: MetricValue,  # noqa: PLR0911
                    tol: Tolerances) -> CompareRow | None:
     """A behaviour/health metric (or a timing count) against its tolerance."""
     mt = tol.tolerance(mn.name)

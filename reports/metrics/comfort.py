@@ -62,7 +62,7 @@ def sg_window(n: int, dt: float) -> int:
     return w
 
 
-def sg(values: np.ndarray, dt: float, deriv: int = 0) -> FloatColumn:
+def sg(values: np.ndarray, dt: float, deriv: int = 0) -> FloatColumn:  # noqa: PLR0911
     """Savitzky–Golay smoothing (deriv=0) or derivative (deriv≥1) of a uniformly sampled
     signal (T,) at period dt [s]. NaNs are linearly interpolated first; all-NaN input
     gives all-NaN output. Smoothing fits the ends (scipy's ``mode='interp'``); a

@@ -1,8 +1,8 @@
 """The floor under the 50x target: how fast the target command could be if the loop's
 Python between the compiled parts took no time at all.
 
-Measured in one fresh interpreter (:func:`floor_study`), as the command's processes do
-it:
+Measured in one fresh interpreter (:func:`floor_study` runs
+:mod:`suite.bench.floor_probe` there), as the command's processes do it:
 
 * ``third_party_import_s``: importing the third-party modules the scenario processes need
   (numpy, numba, libsumo, Rerun, pyarrow's parquet, the parts of scipy used, sumolib)
@@ -30,75 +30,15 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
 
-THIRD_PARTY = ("numpy", "numba", "libsumo", "rerun", "pyarrow.parquet", "scipy.linalg",
-               "scipy.sparse", "scipy.ndimage", "scipy.spatial", "sumolib")
-
-_SCRIPT = """
-import importlib, json, os, time
-t0 = time.perf_counter()
-for name in {third_party!r}:
-    importlib.import_module(name)
-third_party_s = time.perf_counter() - t0
-import gc
-t0 = time.perf_counter()
-from suite.exec.forkserver import PRELOAD
-for name in PRELOAD:
-    importlib.import_module(name)
-gc.freeze()
-preload_s = time.perf_counter() - t0
-from pathlib import Path
-import controllers.two_loop.outer.cgmres as cgmres
-import suite.run.runner as runner
-import suite.world.sumo as sumo
-from suite.catalog import load_catalog
-
-acc = {{"kernel_s": 0.0, "sumo_s": 0.0, "loop_s": 0.0}}
-
-def timed(fn, key):
-    def wrapper(*args, **kwargs):
-        t = time.perf_counter()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            acc[key] += time.perf_counter() - t
-    return wrapper
-
-cgmres.CgmresOuter._continue = timed(cgmres.CgmresOuter._continue, "kernel_s")
-sumo.SumoWorld._advance = timed(sumo.SumoWorld._advance, "sumo_s")
-runner.run_loop = timed(runner.run_loop, "loop_s")
-runs = []
-for k, scenario in enumerate(load_catalog(Path({catalog!r})).scenarios):
-    read, write = os.pipe()
-    pid = os.fork()
-    if pid == 0:
-        os.close(read)
-        t = time.perf_counter()
-        record = runner.run_scenario(scenario, Path({out!r}) / str(k), runner.RunOptions())
-        row = dict(acc, run_s=time.perf_counter() - t, scenario=scenario.name,
-                   status=record.status, steps=record.outcome.steps)
-        os.write(write, json.dumps(row).encode())
-        os._exit(0)
-    os.close(write)
-    chunks = []
-    while True:
-        chunk = os.read(read, 65536)
-        if not chunk:
-            break
-        chunks.append(chunk)
-    os.close(read)
-    os.waitpid(pid, 0)
-    runs.append(json.loads(b"".join(chunks)))
-print(json.dumps({{"third_party_import_s": third_party_s, "preload_s": preload_s,
-                  "runs": runs}}))
-"""
-
+# The measuring process, a script run in a fresh interpreter (its docstring says why not
+# with ``python -m``).
+PROBE = Path(__file__).resolve().with_name("floor_probe.py")
 
 @dataclass(frozen=True)
 class FloorRun:
@@ -143,8 +83,7 @@ def floor_study(catalog: Path, out: Path) -> dict[str, Any]:
     """Run ``catalog`` as described in the module docstring, into ``out`` (fresh)."""
     if out.exists():
         raise FileExistsError(f"{out} exists: the floor study runs into a fresh folder")
-    script = _SCRIPT.format(third_party=THIRD_PARTY, catalog=str(catalog), out=str(out))
-    proc = subprocess.run([sys.executable, "-c", textwrap.dedent(script)], cwd=ROOT,
+    proc = subprocess.run([sys.executable, str(PROBE), str(catalog), str(out)], cwd=ROOT,
                           capture_output=True, text=True, check=False)
     if proc.returncode != 0:
         raise RuntimeError(f"the floor study failed ({proc.returncode}):\n{proc.stderr[-2000:]}")

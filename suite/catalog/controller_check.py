@@ -75,7 +75,7 @@ class ControllerChecker:
         return []
 
 
-    def spec(self, raw: Any, report: Report) -> ControllerSpec | None:
+    def spec(self, raw: Any, report: Report) -> ControllerSpec | None:  # noqa: PLR0911
         """The checked spec of a scenario's ``controller`` value; None (reported) if bad."""
         if raw is MISSING:
             return None

@@ -185,7 +185,7 @@ def number_map(v: Any) -> str | None:
     return None
 
 
-def non_json_path(value: Any, prefix: str = "") -> tuple[str, Any] | None:
+def non_json_path(value: Any, prefix: str = "") -> tuple[str, Any] | None:  # noqa: PLR0911
     """First (dotted path, value) that is not JSON-able, else None."""
     if isinstance(value, Mapping):
         for k, v in value.items():

@@ -12,9 +12,8 @@ first, so that a catalog reports all of its problems.
 from __future__ import annotations
 
 import copy
-import math
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -22,14 +21,28 @@ from suite.catalog import rules
 from suite.catalog.actors import ActorEventSpec, ActorSpec, ActorWhenSpec
 from suite.catalog.errors import SpecError
 from suite.catalog.frozen import FrozenMap, thaw, thaw_map
+from suite.catalog.replay_spec import REPLAY_LANE_CHANGES, REPLAY_MODES, ReplaySpec
 from suite.catalog.rules import Rule
 from suite.catalog.storyboard import Storyboard
-from suite.catalog.tracks import TRACK_ID_PREFIX
+from suite.catalog.vehicle_specs import (
+    MAX_EGO_HEADING_RAD,
+    MAX_EGO_LATERAL_OFFSET_M,
+    EgoSpec,
+    RampTrafficSpec,
+    StalledSpec,
+    TrafficSpec,
+    _plain_dataclass,
+)
 
-__all__ = ["REPLAY_LANE_CHANGES", "REPLAY_MODES", "ActorEventSpec", "ActorSpec",
-           "ActorWhenSpec", "Catalog",
-           "ControllerSpec", "EgoSpec", "RampTrafficSpec", "ReplaySpec", "Scenario",
-           "StalledSpec", "TrafficSpec", "XfailSpec", "default_sumo_step", "sumo_step_problem"]
+__all__ = ["ActorEventSpec", "ActorSpec", "ActorWhenSpec", "CRITERION_OFF", "Catalog",
+           "ControllerSpec", "DEFAULT_SUMO_STEP_S", "EgoSpec", "MAX_EGO_HEADING_RAD",
+           "MAX_EGO_LATERAL_OFFSET_M", "REPLAY_LANE_CHANGES", "REPLAY_MODES", "RampTrafficSpec",
+           "ReplaySpec", "Scenario", "StalledSpec", "TrafficSpec", "XfailSpec",
+           "default_sumo_step", "sumo_step_problem"]
+
+
+
+
 
 DEFAULT_SUMO_STEP_S = 0.1  # SUMO's own step by default: the field's usual 10 Hz
 
@@ -60,271 +73,6 @@ def sumo_step_problem(sumo_step_s: Any, step_s: float) -> str | None:
 
 def _optional_sumo_step(v: Any) -> str | None:
     return None if v is None else rules.sumo_step(v)
-
-
-MAX_EGO_LATERAL_OFFSET_M = 5.0
-"""An ego start further than this [m] from its lane's centre line is in another lane:
-``ego.lane`` says which."""
-
-MAX_EGO_HEADING_RAD = 0.5 * math.pi
-"""An ego start must point along its lane: less than this [rad] from its direction."""
-
-
-def _lateral_offset(v: Any) -> str | None:
-    """None (unset), or a finite offset [m] of at most MAX_EGO_LATERAL_OFFSET_M."""
-    if v is None or (rules.is_number(v) and abs(v) <= MAX_EGO_LATERAL_OFFSET_M):
-        return None
-    return (f"a finite number in [-{MAX_EGO_LATERAL_OFFSET_M:g}, "
-            f"{MAX_EGO_LATERAL_OFFSET_M:g}] (m left of the lane's centre line; further is "
-            "another lane: set ego.lane)")
-
-
-def _heading(v: Any) -> str | None:
-    """None (unset), or a finite angle [rad] of magnitude below MAX_EGO_HEADING_RAD."""
-    if v is None or (rules.is_number(v) and abs(v) < MAX_EGO_HEADING_RAD):
-        return None
-    return (f"a finite number in (-{MAX_EGO_HEADING_RAD:.4f}, {MAX_EGO_HEADING_RAD:.4f}) "
-            "(rad from the lane's direction, counter-clockwise +: the ego points along "
-            "its lane)")
-
-
-@dataclass(frozen=True)
-class EgoSpec:
-    """Ego start: lane index (0 = rightmost), route position, speed, cruise set-point.
-
-    ``target_speed_mps`` defaults to ``speed_mps`` (NaN on input means "unset").
-
-    ``lateral_offset_m`` [m, left +] and ``heading_rad`` [rad, counter-clockwise +]: the
-    start pose in the lane's own frame (:mod:`suite.road.lane_pose`): the front bumper's
-    centre lies ``lateral_offset_m`` left of lane ``lane``'s centre line at route
-    position ``pos_m``, the ego heads ``heading_rad`` from the lane's direction there (a
-    recorded ego mid lane change). ``None`` (unset, both): the run starts the ego on its
-    reference path as it always did; one of them set, the other is 0.
-    """
-
-    lane: int
-    pos_m: float
-    speed_mps: float
-    target_speed_mps: float = math.nan
-    lateral_offset_m: float | None = None
-    heading_rad: float | None = None
-
-    _RULES: ClassVar[dict[str, Rule]] = {
-        "lane": rules.integer(0), "pos_m": rules.num(0.0), "speed_mps": rules.num(0.0),
-        "target_speed_mps": rules.num(0.0), "lateral_offset_m": _lateral_offset,
-        "heading_rad": _heading,
-    }
-    _REQUIRED: ClassVar[tuple[str, ...]] = ("lane", "pos_m", "speed_mps")
-    _POSE: ClassVar[tuple[str, ...]] = ("lateral_offset_m", "heading_rad")
-
-    def __post_init__(self) -> None:
-        if isinstance(self.target_speed_mps, float) and math.isnan(self.target_speed_mps):
-            object.__setattr__(self, "target_speed_mps", self.speed_mps)
-        rules.check_fields(self)
-        rules.as_float(self, "pos_m", "speed_mps", "target_speed_mps",
-                       *(k for k in self._POSE if getattr(self, k) is not None))
-
-    @property
-    def start_pose(self) -> tuple[float, float] | None:
-        """(lateral_offset_m, heading_rad) when either is set (the other 0), else
-        ``None``: the ego starts on its reference path."""
-        if self.lateral_offset_m is None and self.heading_rad is None:
-            return None
-        return (float(self.lateral_offset_m or 0.0), float(self.heading_rad or 0.0))
-
-    def as_dict(self) -> dict[str, Any]:
-        """Every field, the start-pose keys only when set (a scenario without them keeps
-        the dict, and the identity, it had)."""
-        return {k: v for k, v in _plain_dataclass(self).items()
-                if not (k in self._POSE and v is None)}
-
-
-@dataclass(frozen=True)
-class StalledSpec:
-    """A stopped vehicle at route position ``pos_m`` on lane ``lane``."""
-
-    lane: int
-    pos_m: float
-    length_m: float = 4.8
-    width_m: float = 1.9
-
-    _RULES: ClassVar[dict[str, Rule]] = {
-        "lane": rules.integer(0), "pos_m": rules.num(0.0),
-        "length_m": rules.num(0.0, strict=True), "width_m": rules.num(0.0, strict=True),
-    }
-    _REQUIRED: ClassVar[tuple[str, ...]] = ("lane", "pos_m")
-
-    def __post_init__(self) -> None:
-        rules.check_fields(self)
-        rules.as_float(self, "pos_m", "length_m", "width_m")
-
-
-@dataclass(frozen=True)
-class TrafficSpec:
-    """Background traffic. ``lanes`` None = every lane admitting passenger cars;
-    ``speed_mps`` None = the lane speed limit; ``speed_factor_dev`` = SUMO speedDev;
-    ``lane_speeds_mps`` (lane index of the first route edge -> speed [m/s]): the traffic
-    of those lanes drives at most that fast and keeps its lane (None: no lane has its own
-    speed). Its keys are kept as canonical decimal strings (``"2"``), as TOML and JSON
-    write them; :meth:`lane_speed_mps` and :meth:`own_speed_lanes` take and give ints."""
-
-    vehicles_per_hour: float
-    seed: int
-    speed_mps: float | None = None
-    lanes: tuple[int, ...] | None = None
-    speed_factor_dev: float = 0.1
-    lane_speeds_mps: Mapping[str, float] | None = None
-
-    _RULES: ClassVar[dict[str, Rule]] = {
-        "vehicles_per_hour": rules.num(0.0), "seed": rules.integer(0, rules.MAX_SEED),
-        "speed_mps": rules.num(0.0, strict=True, optional=True), "lanes": rules.lanes,
-        "speed_factor_dev": rules.num(0.0), "lane_speeds_mps": rules.lane_speeds,
-    }
-    _REQUIRED: ClassVar[tuple[str, ...]] = ("vehicles_per_hour",)
-
-    def __post_init__(self) -> None:
-        rules.check_fields(self)
-        if self.lanes is not None:
-            object.__setattr__(self, "lanes", tuple(self.lanes))
-        rules.as_float(self, "vehicles_per_hour", "speed_factor_dev")
-        if self.speed_mps is not None:
-            rules.as_float(self, "speed_mps")
-        if self.lane_speeds_mps is not None:
-            speeds = {rules.lane_key(k): float(v) for k, v in self.lane_speeds_mps.items()}
-            if len(speeds) != len(self.lane_speeds_mps):
-                raise SpecError("lane_speeds_mps", "distinct lane indices",
-                                dict(self.lane_speeds_mps))
-            object.__setattr__(self, "lane_speeds_mps", FrozenMap(
-                (str(lane), speed) for lane, speed in sorted(
-                    (int(lane or 0), speed) for lane, speed in speeds.items())))
-
-    def own_speed_lanes(self) -> tuple[int, ...]:
-        """The lanes with their own traffic speed, ascending."""
-        return tuple(int(k) for k in self.lane_speeds_mps or {})
-
-    def lane_speed_mps(self, lane: int) -> float | None:
-        """The lane's own traffic speed [m/s], None if it has none."""
-        if self.lane_speeds_mps is None:
-            return None
-        speed = self.lane_speeds_mps.get(str(lane))
-        return None if speed is None else float(speed)
-
-
-@dataclass(frozen=True)
-class RampTrafficSpec:
-    """Traffic entering the route from ``edge``, an edge off the route (an on-ramp):
-    a Poisson flow of ``vehicles_per_hour`` that drives from ``edge`` onto the route and
-    along it to its end, plus cars spread over the ramp at t = 0. ``speed_mps``: their
-    speed (departure and maximum) [m/s]; None = the lanes' limits."""
-
-    edge: str
-    vehicles_per_hour: float
-    speed_mps: float | None = None
-
-    _RULES: ClassVar[dict[str, Rule]] = {
-        "edge": rules.edge_id, "vehicles_per_hour": rules.num(0.0),
-        "speed_mps": rules.num(0.0, strict=True, optional=True),
-    }
-    _REQUIRED: ClassVar[tuple[str, ...]] = ("edge", "vehicles_per_hour")
-
-    def __post_init__(self) -> None:
-        rules.check_fields(self)
-        rules.as_float(self, "vehicles_per_hour")
-        if self.speed_mps is not None:
-            rules.as_float(self, "speed_mps")
-
-
-REPLAY_MODES = ("replay", "reactive")
-# Lane changes of a reactive (handed-over) recorded vehicle -> SUMO lane-change mode:
-# none at all, only those its route needs (where a lane ends), or SUMO's default set.
-REPLAY_LANE_CHANGES: Mapping[str, int] = FrozenMap({"none": 0, "strategic": 1, "all": 1621})
-
-
-def _choice(options: tuple[str, ...]) -> Rule:
-    what = f"one of {list(options)}"
-
-    def check(v: Any) -> str | None:
-        return None if isinstance(v, str) and v in options else what
-
-    return check
-
-
-def _tracks_name(v: Any) -> str | None:
-    problem = rules.nameable_path(v)
-    if not isinstance(v, str) or not v:
-        return "a tracks file path (Parquet, suite.catalog.tracks), relative to the catalog"
-    return problem
-
-
-def _ego_track_id(v: Any) -> str | None:
-    """None (no recorded ego), or a track id as the tracks file has them."""
-    if v is None or (isinstance(v, str) and v.startswith(TRACK_ID_PREFIX)
-                     and len(v) > len(TRACK_ID_PREFIX)):
-        return None
-    return (f"the id of the recorded ego's track in the tracks file "
-            f"('{TRACK_ID_PREFIX}<id in the recording>')")
-
-
-@dataclass(frozen=True)
-class ReplaySpec:
-    """Recorded traffic around the ego (:mod:`suite.world.replay`, docs/replay.md).
-
-    ``tracks``: the tracks file (:mod:`suite.catalog.tracks`) as the catalog names it,
-    relative to the catalog file (or absolute); ``tracks_path`` its resolved path (set by
-    the loader; ``None`` until then). ``mode``: ``"replay"`` (every recorded vehicle
-    follows its recording, blind to the ego) or ``"reactive"`` (a recorded vehicle hands
-    over to SUMO's car-following driver once its time gap behind the ego, gap / its speed
-    [s], is below ``handover_time_gap_s`` [s] (> 0) with the ego in its lane or about to
-    be, or whenever it is behind the ego in the ego's lane). ``lane_changes``: what a
-    handed-over vehicle may change lanes for: ``"none"``, ``"strategic"`` (only to stay
-    on its route) or ``"all"`` (SUMO's default lane-change model).
-
-    ``ego_track``: the id of the ego's own recorded track in the tracks file (None: the
-    recording has no recorded ego). That track is never replayed as traffic (it would
-    sit on the ego); the controller ``recorded`` drives the ego along it. The loader
-    checks it exists, has two samples or more and starts at run time 0
-    (:func:`suite.catalog.tracks.ego_track_problem`)."""
-
-    tracks: str
-    mode: str = "replay"
-    handover_time_gap_s: float = 1.0
-    lane_changes: str = "strategic"
-    tracks_path: Path | None = None
-    ego_track: str | None = None
-
-    _RULES: ClassVar[dict[str, Rule]] = {
-        "tracks": _tracks_name, "mode": _choice(REPLAY_MODES),
-        "handover_time_gap_s": rules.num(0.0, strict=True),
-        "lane_changes": _choice(tuple(REPLAY_LANE_CHANGES)),
-        "ego_track": _ego_track_id,
-    }
-    _REQUIRED: ClassVar[tuple[str, ...]] = ("tracks",)
-
-    def __post_init__(self) -> None:
-        rules.check_fields(self)
-        rules.as_float(self, "handover_time_gap_s")
-        if self.tracks_path is not None:
-            object.__setattr__(self, "tracks_path", Path(self.tracks_path))
-
-    @property
-    def reactive(self) -> bool:
-        return self.mode == "reactive"
-
-    @property
-    def lane_change_mode(self) -> int:
-        """SUMO's lane-change mode of a handed-over vehicle (``REPLAY_LANE_CHANGES``)."""
-        return int(REPLAY_LANE_CHANGES[self.lane_changes])
-
-    def as_dict(self) -> dict[str, Any]:
-        """The catalog's keys (``tracks_path`` is machine-specific, as ``net_path``;
-        ``ego_track`` only when set, so that a scenario without a recorded ego keeps the
-        dict, and the identity, it had)."""
-        out: dict[str, Any] = {"tracks": self.tracks, "mode": self.mode,
-                               "handover_time_gap_s": self.handover_time_gap_s,
-                               "lane_changes": self.lane_changes}
-        if self.ego_track is not None:
-            out["ego_track"] = self.ego_track
-        return out
 
 
 @dataclass(frozen=True)
@@ -440,33 +188,14 @@ class Scenario:
         rules.check_fields(self)
         if self.step_s > self.duration_s:
             raise SpecError("step_s", f"a step <= duration_s ({self.duration_s})", self.step_s)
-        if self.sumo_step_s is None:
-            object.__setattr__(self, "sumo_step_s", default_sumo_step(float(self.step_s)))
-        problem = sumo_step_problem(self.sumo_step_s, float(self.step_s))
-        if problem:
-            raise SpecError("sumo_step_s", problem, self.sumo_step_s)
-        object.__setattr__(self, "sumo_step_s", float(self.sumo_step_s))  # type: ignore[arg-type]
-        if not isinstance(self.ego, EgoSpec):
-            raise SpecError("ego", "an EgoSpec", self.ego)
-        if not isinstance(self.controller, ControllerSpec):
-            raise SpecError("controller", "a ControllerSpec", self.controller)
-        if self.traffic is not None and not isinstance(self.traffic, TrafficSpec):
-            raise SpecError("traffic", "a TrafficSpec or None", self.traffic)
-        if self.replay is not None and not isinstance(self.replay, ReplaySpec):
-            raise SpecError("replay", "a ReplaySpec or None", self.replay)
-        if self.xfail is not None and not isinstance(self.xfail, XfailSpec):
-            raise SpecError("xfail", "an XfailSpec or None", self.xfail)
+        self._resolve_sumo_step()
+        self._check_spec_types()
         _check_story(self.storyboard, self.story)
-        stalled = tuple(self.stalled)
-        if any(not isinstance(s, StalledSpec) for s in stalled):
-            raise SpecError("stalled", "a sequence of StalledSpec", self.stalled)
-        ramps = tuple(self.ramp_traffic)
-        if any(not isinstance(r, RampTrafficSpec) for r in ramps):
-            raise SpecError("ramp_traffic", "a sequence of RampTrafficSpec", self.ramp_traffic)
-        object.__setattr__(self, "ramp_traffic", ramps)
-        actors = tuple(self.actors)
-        if any(not isinstance(a, ActorSpec) for a in actors):
-            raise SpecError("actors", "a sequence of ActorSpec", self.actors)
+        stalled = _tuple_of(self.stalled, StalledSpec, "stalled", "a sequence of StalledSpec")
+        object.__setattr__(self, "ramp_traffic", _tuple_of(
+            self.ramp_traffic, RampTrafficSpec, "ramp_traffic",
+            "a sequence of RampTrafficSpec"))
+        actors = _tuple_of(self.actors, ActorSpec, "actors", "a sequence of ActorSpec")
         ids = [a.id for a in actors]
         if len(set(ids)) != len(ids):
             raise SpecError("actors", "actors with distinct ids", ids)
@@ -476,6 +205,32 @@ class Scenario:
             raise SpecError("route", "a non-empty sequence of edge ids", self.route)
         object.__setattr__(self, "stalled", stalled)
         object.__setattr__(self, "route", route)
+        self._normalise()
+
+    def _resolve_sumo_step(self) -> None:
+        """SUMO's step: the default for ``step_s`` when not given, checked, a float."""
+        if self.sumo_step_s is None:
+            object.__setattr__(self, "sumo_step_s", default_sumo_step(float(self.step_s)))
+        problem = sumo_step_problem(self.sumo_step_s, float(self.step_s))
+        if problem:
+            raise SpecError("sumo_step_s", problem, self.sumo_step_s)
+        object.__setattr__(self, "sumo_step_s", float(self.sumo_step_s))  # type: ignore[arg-type]
+
+    def _check_spec_types(self) -> None:
+        """The nested specs are specs (the optional ones None or a spec)."""
+        if not isinstance(self.ego, EgoSpec):
+            raise SpecError("ego", "an EgoSpec", self.ego)
+        if not isinstance(self.controller, ControllerSpec):
+            raise SpecError("controller", "a ControllerSpec", self.controller)
+        for name, kind, what in (("traffic", TrafficSpec, "a TrafficSpec or None"),
+                                 ("replay", ReplaySpec, "a ReplaySpec or None"),
+                                 ("xfail", XfailSpec, "an XfailSpec or None")):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, kind):
+                raise SpecError(name, what, value)
+
+    def _normalise(self) -> None:
+        """Paths, frozen maps and floats of the plain fields."""
         object.__setattr__(self, "catalog_path", Path(self.catalog_path))
         object.__setattr__(self, "net_path", Path(self.net_path))
         object.__setattr__(self, "criteria", FrozenMap(
@@ -542,6 +297,14 @@ class Scenario:
         }
 
 
+def _tuple_of(values: Any, kind: type, name: str, what: str) -> tuple[Any, ...]:
+    """``values`` as a tuple, each a ``kind`` (else a SpecError on field ``name``)."""
+    out = tuple(values)
+    if any(not isinstance(v, kind) for v in out):
+        raise SpecError(name, what, values)
+    return out
+
+
 def _check_story(storyboard: str | None, story: Storyboard | None) -> None:
     """A storyboard file name and its :class:`Storyboard`, or neither."""
     if (storyboard is None) != (story is None) or (
@@ -556,8 +319,6 @@ def _sha256(text: str) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
-def _plain_dataclass(obj: Any) -> dict[str, Any]:
-    return {f.name: thaw(getattr(obj, f.name)) for f in fields(obj)}
 
 
 @dataclass(frozen=True)

@@ -123,7 +123,7 @@ def overlapping(keys: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def path_target(root: Any, path: str) -> tuple[bool, str]:
+def path_target(root: Any, path: str) -> tuple[bool, str]:  # noqa: PLR0911
     """(ok, problem) for a dotted sweep path in a merged scenario dict."""
     comps = path.split(".")
     if not path or any(c == "" for c in comps):

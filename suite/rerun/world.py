@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import rerun as rr
 
-from reports.geometry import box_corners
+from reports.geometry import box_corners, ego_box_centres
 from reports.record import AGENT_NAMES, AGENT_REACTIVE, AGENT_REPLAYED
 from suite.rerun.blueprint import VIEW_FRAME_SCALE, north_up_transform
 from suite.rerun.paths import ENTITY_PATHS, RECORDED_PATHS
@@ -153,8 +153,7 @@ def log_ego(log: RunLog) -> None:
     ego, box = log.record.trace.ego, log.record.info.ego
     x, y = ego.x_m, ego.y_m
     psi = np.where(np.isfinite(ego.psi_rad), ego.psi_rad, 0.0)
-    cx = x + box.cg_to_box_centre_m * np.cos(psi)
-    cy = y + box.cg_to_box_centre_m * np.sin(psi)
+    cx, cy = ego_box_centres(x, y, psi, box)
     boxes = closed_boxes(cx, cy, psi, np.full(log.n, box.length_m), np.full(log.n, box.width_m))
     ok = np.all(np.isfinite(boxes), axis=(1, 2))
     path = ENTITY_PATHS["ego_box"]

@@ -29,6 +29,7 @@ from functools import cached_property
 
 import numpy as np
 
+from reports.geometry import polyline_length_m
 from suite.road.network import LaneInfo, LaneLink, RoadNetwork
 
 Node = tuple[int, int]
@@ -169,11 +170,6 @@ class RouteLaneGraph:
 def lane_lateral_order(lanes: dict[int, LaneInfo]) -> list[int]:
     """Lane indices of one edge right to left (SUMO's index order)."""
     return sorted(lanes)
-
-
-def polyline_length_m(xy: np.ndarray) -> float:
-    pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-    return float(np.sum(np.hypot(*np.diff(pts, axis=0).T))) if len(pts) > 1 else 0.0
 
 
 __all__ = ["ChainStep", "RouteLaneGraph", "lane_lateral_order", "math", "polyline_length_m"]

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from reports.geometry import arc_lengths_m
 from suite.road.interp import interp_scalar
 from suite.road.lane_graph import ChainStep, RouteLaneGraph
 from suite.road.network import RoadNetwork
@@ -166,12 +167,11 @@ def build_reference(network: RoadNetwork, route: tuple[str, ...], ego_pos_m: flo
     poly, junction, spans = _chain_polyline(chain)
     ext_poly, ext_junction, ext_spans = _extended(poly, junction, spans, END_EXTENSION_M)
     res = resample(ext_poly, tube.spacing_m, ext_junction)
-    seg = np.hypot(*np.diff(ext_poly, axis=0).T)
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    cum = arc_lengths_m(ext_poly)
     half, jog_zone = _tube_half_widths(ext_poly, cum, ext_spans, res, tube)
     room = _room(network, route, chain, ext_spans, cum, res)
     full_curve, offsets, used_half = smooth_within_support(res, tube, half, room)
-    full_s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(full_curve, axis=0).T))])
+    full_s = arc_lengths_m(full_curve)
     # Every chain vertex projected onto the curve, searched near its own place on it.
     vertex_s = project_along(full_curve, full_s, ext_poly[1:-1], cum[1:-1])
     s0, s1 = float(vertex_s[0]), float(vertex_s[-1])

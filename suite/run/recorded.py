@@ -50,6 +50,7 @@ from controllers.plant.vehicle_model import VehicleParams
 from controllers.protocol import (
     Command,
 )
+from reports.geometry import box_front
 from suite.catalog import Scenario
 from suite.catalog.tracks import EGO_TRACK_START_TOL_S, Track, read_tracks
 from suite.run.dynamics import DrivenEgoStage
@@ -170,10 +171,10 @@ class RecordedDynamics:
 
     def pose(self, j: int) -> EgoPose:
         """The front bumper pose at control step ``j`` (what SUMO gets)."""
-        p, half = self.path, 0.5 * self.vehicle.length_m
+        p = self.path
         psi = float(p.heading_rad[j])
-        return EgoPose(float(p.x_m[j]) + half * math.cos(psi),
-                       float(p.y_m[j]) + half * math.sin(psi), psi)
+        fx, fy = box_front(float(p.x_m[j]), float(p.y_m[j]), psi, self.vehicle.length_m)
+        return EgoPose(fx, fy, psi)
 
     def state(self, j: int) -> FloatArray:
         """(6,) [X_m, Y_m, psi_rad, u_mps, v_mps, r_radps] of the CG at control step ``j``."""

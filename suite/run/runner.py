@@ -272,7 +272,7 @@ def run_scenario(scenario: Scenario, out_dir: Path, options: RunOptions | None =
     return record
 
 
-def _record(scenario: Scenario, options: RunOptions, vehicle: VehicleParams, run: _Run | None,
+def _record(scenario: Scenario, options: RunOptions, vehicle: VehicleParams, run: _Run | None,  # noqa: PLR0913
             summary: WorldSummary, end: str, error: str | None, reason: str,
             wall0: float) -> RunRecord:
     if run is not None:

@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 
 from controllers.plant.vehicle_model import VehicleParams
-from reports.geometry import load_kernels, nearest_box
+from reports.geometry import load_kernels, nearest_box, point_ahead
 from suite.run.ego import EgoState
 from suite.world.protocol import Scene
 
@@ -57,8 +57,7 @@ class SafetyMonitor:
             return SafetySample(math.inf, "", False, hit)
         st = ego.state
         psi = float(st[2])
-        cx = float(st[0]) + self._offset_m * math.cos(psi)
-        cy = float(st[1]) + self._offset_m * math.sin(psi)
+        cx, cy = point_ahead(float(st[0]), float(st[1]), psi, self._offset_m)
         i, gap, overlap = nearest_box(cx, cy, psi, self._length_m, self._width_m, tr.x_m, tr.y_m,
                                       tr.heading_rad, tr.length_m, tr.width_m)
         return SafetySample(gap, tr.ids[i], overlap, hit)

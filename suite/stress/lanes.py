@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reports.geometry import arc_lengths_m
 from suite.road.lane_graph import RouteLaneGraph
 from suite.road.network import RoadNetwork
 
@@ -107,7 +108,7 @@ def lane_curvature(xy_m: np.ndarray, spacing_m: float = 5.0, window_m: float = 5
     xy = xy[keep]
     if xy.shape[0] < 3:
         return math.inf, 0.0
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    s = arc_lengths_m(xy)
     grid = np.arange(0.0, s[-1], spacing_m)
     x, y = np.interp(grid, s, xy[:, 0]), np.interp(grid, s, xy[:, 1])
     heading = np.unwrap(np.arctan2(np.diff(y), np.diff(x)))

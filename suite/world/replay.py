@@ -46,6 +46,7 @@ import numpy as np
 import numpy.typing as npt
 
 from controllers.behaviour.types import Traffic
+from reports.geometry import box_fronts, math_rad_to_nav_deg_array
 from reports.record import AGENT_REACTIVE, AGENT_REPLAYED, AGENT_SUMO, ReplayHandover
 from suite.catalog import ReplaySpec
 from suite.catalog.tracks import Track, TrackSet
@@ -138,9 +139,8 @@ def _grid(track: Track, dt_s: float, last_k: int) -> _Grid | None:
     y = np.interp(t, track.time_s, track.y_m)
     h = np.interp(t, track.time_s, track.heading_rad)
     v = np.interp(t, track.time_s, track.speed_mps)
-    half = 0.5 * track.length_m
-    return _Grid(k0, k1, x + half * np.cos(h), y + half * np.sin(h),
-                 np.mod(90.0 - np.degrees(h), 360.0), v)
+    fx, fy = box_fronts(x, y, h, track.length_m)
+    return _Grid(k0, k1, fx, fy, math_rad_to_nav_deg_array(h), v)
 
 
 @dataclass

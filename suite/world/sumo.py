@@ -47,6 +47,14 @@ import numpy as np
 
 from controllers.behaviour.types import Traffic
 from controllers.plant.vehicle_model import VehicleParams
+from reports.geometry import (
+    arc_lengths_m,
+    box_centre_from_front,
+    box_centres_from_fronts,
+    math_rad_to_nav_deg,
+    nav_deg_to_math_rad,
+    nav_deg_to_math_rad_scalar,
+)
 from reports.record import ReplaySummary, StalledVehicle, SumoCollision
 from suite.catalog import Scenario
 from suite.catalog.tracks import read_tracks
@@ -68,27 +76,15 @@ _LANE_INDEX, _ROAD_ID, _LANE_ID, _LANE_POSITION = 0x52, 0x50, 0x51, 0x56
 _EGO_VARS = (_POSITION, _ANGLE, _SPEED, _ACCELERATION, _LANE_INDEX, _ROAD_ID, _LANE_ID,
              _LANE_POSITION)
 SENSING_RADIUS_M = 300.0  # vehicles this close to the ego are reported every step
+# The heading conversions live in reports.geometry.poses; re-exported here for callers.
+__all__ = ["HAZARD_SIGNAL", "SENSING_RADIUS_M", "SumoWorld", "math_rad_to_nav_deg",
+           "nav_deg_to_math_rad", "nav_deg_to_math_rad_scalar", "sumo_binary"]
 
 
 def sumo_binary() -> str:
     import sumo_nets
 
     return os.path.join(sumo_nets.sumo_home(), "bin", "sumo")
-
-
-def nav_deg_to_math_rad(angle_deg: Any) -> Any:
-    """SUMO navigation degrees (0 = north, clockwise) -> radians CCW from +X."""
-    return np.deg2rad(90.0 - np.asarray(angle_deg, dtype=np.float64))
-
-
-def nav_deg_to_math_rad_scalar(angle_deg: float) -> float:
-    """:func:`nav_deg_to_math_rad` of one angle with math: the same single multiply by
-    pi/180 as numpy's deg2rad (bit-identical), without wrapping a scalar in an array."""
-    return math.radians(90.0 - angle_deg)
-
-
-def math_rad_to_nav_deg(psi_rad: float) -> float:
-    return float((90.0 - math.degrees(psi_rad)) % 360.0)
 
 
 class SumoWorld:
@@ -330,10 +326,9 @@ class SumoWorld:
 
     def _handover_ego(self, ego: WorldEgo) -> HandoverEgo:
         """The ego's SUMO box for the handover rule (centre from the front bumper)."""
-        half = 0.5 * float(self.vehicle.length_m)
-        return HandoverEgo(ego.front_x_m - half * math.cos(ego.heading_rad),
-                           ego.front_y_m - half * math.sin(ego.heading_rad), ego.heading_rad,
-                           ego.speed_mps, float(self.vehicle.length_m),
+        cx, cy = box_centre_from_front(ego.front_x_m, ego.front_y_m, ego.heading_rad,
+                                       float(self.vehicle.length_m))
+        return HandoverEgo(cx, cy, ego.heading_rad, ego.speed_mps, float(self.vehicle.length_m),
                            float(self.vehicle.width_m), ego.road_id, ego.lane_index)
 
     def _ego(self) -> WorldEgo:
@@ -359,7 +354,7 @@ class SumoWorld:
             if len(shape) < 2:
                 return math.nan
             seg = np.diff(shape, axis=0)
-            cum = np.concatenate([[0.0], np.cumsum(np.hypot(*seg.T))])
+            cum = arc_lengths_m(shape)
             length = float(self._ls.lane.getLength(lane_id))
             scale = length / cum[-1] if cum[-1] > 0 else 1.0
             geom = (cum * scale, np.arctan2(seg[:, 1], seg[:, 0]))
@@ -385,9 +380,9 @@ class SumoWorld:
                           for r in rows], dtype=np.float64)
         fx, fy, length = table[:, 0], table[:, 1], table[:, 4]
         heading = nav_deg_to_math_rad(table[:, 2])
+        cx, cy = box_centres_from_fronts(fx, fy, heading, length)
         return Traffic(
-            ids=ids, x_m=fx - 0.5 * length * np.cos(heading),
-            y_m=fy - 0.5 * length * np.sin(heading), heading_rad=heading,
+            ids=ids, x_m=cx, y_m=cy, heading_rad=heading,
             speed_mps=table[:, 3].copy(), length_m=length.copy(), width_m=table[:, 5].copy(),
             lane_index=table[:, 6].astype(np.int64),
             road_id=tuple(str(r[tc.VAR_ROAD_ID]) for r in rows),
@@ -406,9 +401,9 @@ class SumoWorld:
             fx, fy = v.getPosition(vid)
             heading = float(nav_deg_to_math_rad(v.getAngle(vid)))
             length = float(v.getLength(vid))
+            cx, cy = box_centre_from_front(fx, fy, heading, length)
             out.append(StalledVehicle(
-                id=vid, x_m=fx - 0.5 * length * math.cos(heading),
-                y_m=fy - 0.5 * length * math.sin(heading), heading_rad=heading,
+                id=vid, x_m=cx, y_m=cy, heading_rad=heading,
                 length_m=length, width_m=float(v.getWidth(vid)),
                 lane_index=int(v.getLaneIndex(vid))))
         return tuple(out)

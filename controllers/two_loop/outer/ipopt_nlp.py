@@ -263,7 +263,7 @@ class Nlp:
     lookup: PathLookup  # held so that the cache key's id stays this lookup's
 
 
-def _build_nlp(lookup: PathLookup, n: int, k: int, formulation: str,
+def _build_nlp(lookup: PathLookup, n: int, k: int, formulation: str,  # noqa: C901, PLR0915
                ipopt_opts: dict[str, Any]) -> Nlp:
     ca = _casadi()
     t0 = time.perf_counter()

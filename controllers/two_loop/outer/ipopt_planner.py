@@ -97,7 +97,7 @@ class IpoptOuter(CruiseSetPoint):
 
     updates_per_period = 1  # one NLP solve per control period
 
-    def __init__(self, path: PathLike, params: IpoptParams, n_slots: int = 3, *,
+    def __init__(self, path: PathLike, params: IpoptParams, n_slots: int = 3, *,  # noqa: PLR0913
                  max_wall_s: float | None = None,
                  omega_max_radps: float = 0.5, v_max_factor: float = 1.5,
                  v_cap_floor_mps: float = 5.0, brake_decel_mps2: float | None = None,
@@ -213,7 +213,7 @@ class IpoptOuter(CruiseSetPoint):
 
     # -- one update ---------------------------------------------------------
 
-    def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,
+    def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,  # noqa: PLR0915
                target_speed_mps: float, dt_s: float,
                lateral_reference_m: float = 0.0,
                lateral_weight: float | None = None) -> OuterPlan:

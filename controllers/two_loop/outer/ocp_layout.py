@@ -87,7 +87,7 @@ def pack_params(params: OcpParams, target_speed_mps: float,
     return out
 
 
-def obstacle_row(s_m: float, y_m: float, a_m: float, b_m: float, *, vs_mps: float = 0.0,
+def obstacle_row(s_m: float, y_m: float, a_m: float, b_m: float, *, vs_mps: float = 0.0,  # noqa: PLR0913
                  vy_mps: float = 0.0, active: bool = True, weight: float = 1.0,
                  weight_rate_1ps: float = 0.0) -> np.ndarray:
     """One slot of the obstacle table (OBS_COLS,): an ellipse centred at (s, y) [m] with

@@ -35,6 +35,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from controllers.plant.vehicle_model import VehicleParams
+from reports.geometry import box_front
 from suite.catalog.specs import MAX_EGO_HEADING_RAD, MAX_EGO_LATERAL_OFFSET_M
 from suite.importers.common import catalog
 from suite.importers.common.catalog import (
@@ -173,8 +174,7 @@ def ego_table(path: str, network: RoadNetwork, route: Sequence[str], ego: EgoSta
         raise ImportFailure(path, element, f"the ego is {centre.distance_m:.2f} m from the "
                             "nearest lane of its route")
     half = 0.5 * vehicle.length_m
-    fx = ego.x_m + half * math.cos(ego.heading_rad)
-    fy = ego.y_m + half * math.sin(ego.heading_rad)
+    fx, fy = box_front(ego.x_m, ego.y_m, ego.heading_rad, vehicle.length_m)
     total = network.route_length_m(route)
     first = locate_on_route(network, route, fx, fy).pos_m
     if not centre.pos_m + half < total or not first < total:
@@ -228,7 +228,7 @@ def stalled_tables(network: RoadNetwork, route: Sequence[str],
         if at.distance_m > 0.5 * at.width_m or not pos < network.route_length_m(route):
             notes.append(f"static obstacle {ob.obstacle_id} is not on the ego's route: dropped")
             continue
-        fx, fy = x + 0.5 * ob.length_m * math.cos(h), y + 0.5 * ob.length_m * math.sin(h)
+        fx, fy = box_front(x, y, h, ob.length_m)
         tables.append({"lane": _lane_at(network, route, pos, fx, fy), "pos_m": round(pos, 3),
                        "length_m": round(ob.length_m, 3), "width_m": round(ob.width_m, 3)})
     if tables:

@@ -20,7 +20,7 @@ obstacle (:func:`refuse_overlap_at_start`): the run would start in a collision t
 the recording's. A vehicle that *jumps* between two consecutive samples, its
 displacement differing from what its speeds and headings allow by more than
 :data:`reports.metrics.collisions.JUMP_EXCESS_MPS` times the interval
-(:func:`reports.metrics.collisions.jump_excess_mps`), is a warning naming it, the time
+(:func:`reports.geometry.motion.jump_excess_mps`), is a warning naming it, the time
 and the jump (:func:`find_jumps`); at run time a contact during or just after such a
 jump is the recording's (``replayed_into_ego``), by the same test on the replayed
 poses.
@@ -34,8 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reports.geometry import box_corners, boxes_overlap
-from reports.metrics.collisions import JUMP_EXCESS_MPS, jump_excess_mps
+from reports.geometry import box_corners, boxes_overlap, jump_excess_mps
+from reports.metrics.collisions import JUMP_EXCESS_MPS
 from suite.catalog.tracks import TRACK_ID_PREFIX, Track
 from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import angle_diff_rad, project

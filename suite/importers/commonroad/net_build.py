@@ -216,7 +216,7 @@ def _links(road: RoadRows, nodes_in: dict[str, list[int]], nodes_out: dict[str, 
     return links
 
 
-def plan_net(road: RoadRows, params: NetParams, path: str,
+def plan_net(road: RoadRows, params: NetParams, path: str,  # noqa: C901 (issue 37: still to split)
              speeds: SpeedPlan | None = None) -> BuiltNet:
     """The net's edges, nodes and connections (no file yet); lane speeds from
     ``speeds`` (one per lane of each row; ``None``: ``SPEED_LIMIT_MPS``)."""

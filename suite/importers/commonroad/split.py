@@ -36,6 +36,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from reports.geometry import arc_lengths_m
 from suite.importers.commonroad.errors import ImportFailure
 from suite.importers.commonroad.geometry import polyline_length_m, project, resample
 from suite.importers.commonroad.records import FloatArray, LaneletRecord
@@ -138,7 +139,7 @@ def cut_lanelet(ll: LaneletRecord, cuts_m: Iterable[float]) -> list[LaneletRecor
     interpolated at the same vertex-pair parameter (module docstring, step 2). The
     pieces keep ``ll``'s fields but their bounds (the caller renumbers and rewires)."""
     left, right = ll.left_xy_m, ll.right_xy_m
-    cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(ll.centre_xy_m, axis=0).T))])
+    cum = arc_lengths_m(ll.centre_xy_m)
     pieces: list[LaneletRecord] = []
     lo_l, lo_r, lo_idx = left[:0], right[:0], 0
     for s in sorted(cuts_m):

@@ -21,7 +21,7 @@ StateTest = Callable[[sb.StateCondition], bool]
 PlaceY = Callable[[sb.RoutePosition], float]
 
 
-def _entity_value(check: object, me: EntityView, views: Mapping[str, EntityView],
+def _entity_value(check: object, me: EntityView, views: Mapping[str, EntityView],  # noqa: PLR0911
                   place_y: PlaceY) -> float:
     """The measured value of an entity condition for triggering entity ``me``."""
     ref = views.get(getattr(check, "entity_ref", ""), None)

@@ -24,6 +24,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from reports.geometry import box_front
 from suite.catalog import storyboard as sb
 from suite.world.storyboard.profiles import lane_offset_duration_s, shape, transition_duration
 from suite.world.storyboard.road import LaneRoad, lane_centre_y, lane_of
@@ -226,7 +227,7 @@ class Motion:
         half = 0.5 * self.entity.length_m
         lane, lateral = lane_of(road, self.pos_m - half, self.y_m)
         cx, cy, h = road.pose(self.pos_m - half, lane, lateral, self.heading_rad)
-        x, y = cx + half * math.cos(h), cy + half * math.sin(h)
+        x, y = box_front(cx, cy, h, self.entity.length_m)
         return EntityView(self.entity, self.pos_m, self.y_m, x, y, h, self.speed_mps,
                           self.travelled_m)
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from reports.geometry import math_rad_to_nav_deg, nav_deg_to_math_rad_scalar
 from suite.catalog import storyboard as sb
 from suite.road.lane_pose import lane_frame, pose_in_lane
 from suite.road.network import RoadNetwork
@@ -73,7 +74,7 @@ class StoryRunner:
 
     def _push(self, ls: Any, vid: str, v: EntityView) -> None:
         ls.vehicle.moveToXY(vid, "", -1, v.x_m, v.y_world_m,
-                            (90.0 - math.degrees(v.heading_rad)) % 360.0, keepRoute=2)
+                            math_rad_to_nav_deg(v.heading_rad), keepRoute=2)
         ls.vehicle.setSpeed(vid, max(v.speed_mps, 0.0))
 
     def _ego(self, ls: Any) -> EntityView | None:
@@ -83,7 +84,7 @@ class StoryRunner:
             return None
         v = ls.vehicle
         x, y = v.getPosition(EGO_ID)
-        h = math.radians(90.0 - float(v.getAngle(EGO_ID)))
+        h = nav_deg_to_math_rad_scalar(float(v.getAngle(EGO_ID)))
         road, lane = str(v.getRoadID(EGO_ID)), int(v.getLaneIndex(EGO_ID))
         starts = self.network.route_edge_starts_m(self.route)
         if road in starts:

@@ -1,0 +1,126 @@
+"""The floor study's measuring process (:func:`suite.bench.floor.floor_study` runs it).
+
+Run as a script in a fresh interpreter, from the repository root::
+
+    python suite/bench/floor_probe.py CATALOG OUT
+
+and prints one JSON line: ``third_party_import_s``, ``preload_s`` and ``runs`` (one
+row per scenario: ``run_s``, ``loop_s``, ``kernel_s``, ``sumo_s``, ``scenario``,
+``status``, ``steps``), as :mod:`suite.bench.floor`'s docstring describes.
+
+It is run as a file, not with ``python -m``: ``-m`` would import ``suite`` and
+``suite.bench`` (and numpy with them) before the third-party imports are timed. So this
+module imports nothing but the standard library at its top; the third-party modules,
+then the scenario processes' preload, are imported inside :func:`main`, timed.
+
+The three timers wrap, for the probe's process only, the calls they time
+(:func:`install_timers`): the C/GMRES continuation kernel
+(``CgmresOuter._continue``), SUMO's step with its collision query
+(``SumoWorld._advance``) and the runner's loop (``suite.run.runner.run_loop``).
+"""
+
+from __future__ import annotations
+
+import gc
+import importlib
+import json
+import os
+import sys
+import time
+
+# Only what the ``python -c`` script imported before its first timer: typing, pathlib and
+# collections.abc would otherwise be imported before the third-party modules are timed.
+TYPE_CHECKING = False
+if TYPE_CHECKING:
+    from collections.abc import Callable
+    from pathlib import Path
+    from typing import Any
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.realpath(__file__))))
+
+# what no change to this project's code removes (kept equal to suite.bench.floor's)
+THIRD_PARTY = ("numpy", "numba", "libsumo", "rerun", "pyarrow.parquet", "scipy.linalg",
+               "scipy.sparse", "scipy.ndimage", "scipy.spatial", "sumolib")
+
+
+def _timed(fn: Callable[..., Any], acc: dict[str, float], key: str) -> Callable[..., Any]:
+    """``fn`` adding its wall time of every call to ``acc[key]`` [s]."""
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        t = time.perf_counter()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            acc[key] += time.perf_counter() - t
+    return wrapper
+
+
+def install_timers(acc: dict[str, float]) -> None:
+    """Wrap the C/GMRES kernel calls, SUMO's step and the loop with timers into ``acc``."""
+    import controllers.two_loop.outer.cgmres as cgmres
+    import suite.run.runner as runner
+    import suite.world.sumo as sumo
+
+    cgmres.CgmresOuter._continue = _timed(  # type: ignore[method-assign]
+        cgmres.CgmresOuter._continue, acc, "kernel_s")
+    sumo.SumoWorld._advance = _timed(  # type: ignore[method-assign]
+        sumo.SumoWorld._advance, acc, "sumo_s")
+    runner.run_loop = _timed(runner.run_loop, acc, "loop_s")  # type: ignore[attr-defined]
+
+
+def _run_in_child(acc: dict[str, float], scenario: Any, out: Path) -> dict[str, Any]:
+    """Run one scenario in a child forked from this process; its row, through a pipe."""
+    import suite.run.runner as runner
+    from suite.run.options import RunOptions
+
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(read)
+        t = time.perf_counter()
+        record = runner.run_scenario(scenario, out, RunOptions())
+        child_row = dict(acc, run_s=time.perf_counter() - t, scenario=scenario.name,
+                         status=record.status, steps=record.outcome.steps)
+        os.write(write, json.dumps(child_row).encode())
+        os._exit(0)
+    os.close(write)
+    chunks = []
+    while True:
+        chunk = os.read(read, 65536)
+        if not chunk:
+            break
+        chunks.append(chunk)
+    os.close(read)
+    os.waitpid(pid, 0)
+    row: dict[str, Any] = json.loads(b"".join(chunks))
+    return row
+
+
+def main(catalog: str, out: str) -> dict[str, Any]:
+    """The study (module docstring): import times, then every scenario of ``catalog``
+    run into ``out``/k in a child with the timers."""
+    t0 = time.perf_counter()
+    for name in THIRD_PARTY:
+        importlib.import_module(name)
+    third_party_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    from suite.exec.forkserver import PRELOAD
+
+    for name in PRELOAD:
+        importlib.import_module(name)
+    gc.freeze()
+    preload_s = time.perf_counter() - t0
+    from pathlib import Path
+
+    from suite.catalog import load_catalog
+
+    acc = {"kernel_s": 0.0, "sumo_s": 0.0, "loop_s": 0.0}
+    install_timers(acc)
+    runs = [_run_in_child(acc, scenario, Path(out) / str(k))
+            for k, scenario in enumerate(load_catalog(Path(catalog)).scenarios)]
+    return {"third_party_import_s": third_party_s, "preload_s": preload_s, "runs": runs}
+
+
+if __name__ == "__main__":
+    # as ``python -c`` from the root did: the root first on the path, not this folder
+    sys.path[0] = ROOT
+    print(json.dumps(main(sys.argv[1], sys.argv[2])))
