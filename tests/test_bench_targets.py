@@ -245,3 +245,18 @@ def test_the_quick_bench_judges_every_target(tmp_path: Path) -> None:
     acc = figures["issue25"]["command"]["account"]
     assert sum(v for _, v in acc["parts_s"]) == pytest.approx(acc["command_s"])
     assert len(list(tmp_path.glob("hwyeval-bench-*"))) == 0  # cleaned up
+
+
+def test_a_scenario_process_pins_itself_to_the_cpus_named() -> None:
+    """suite.exec.worker.become_worker reads HWYEVAL_SCENARIO_CPUS (bench --isolated)."""
+    cpu = max(os.sched_getaffinity(0))
+    code = ("import os; from suite.exec.worker import become_worker; become_worker(); "
+            "print(sorted(os.sched_getaffinity(0)))")
+    env = dict(os.environ, HWYEVAL_SCENARIO_CPUS=str(cpu))
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, text=True,
+                         capture_output=True, check=True).stdout
+    assert out.strip() == f"[{cpu}]"
+    env["HWYEVAL_SCENARIO_CPUS"] = "not-a-cpu"  # ignored: never a reason to fail a run
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, text=True,
+                         capture_output=True, check=True).stdout
+    assert out.strip() == str(sorted(os.sched_getaffinity(0)))

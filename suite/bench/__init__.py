@@ -182,8 +182,10 @@ def _extrapolation() -> dict[str, Any]:
 
 
 def _timed(progress: Progress, label: str, catalog: Path, out: Path, jobs: int,
-           log: bool, cpus: frozenset[int] | None = None) -> CommandTiming:
-    t = run_command(catalog, out, jobs=jobs, log=log, cpus=cpus)
+           log: bool, cpus: tuple[frozenset[int], frozenset[int]] | None = None
+           ) -> CommandTiming:
+    t = run_command(catalog, out, jobs=jobs, log=log, cpus=cpus[0] if cpus else None,
+                    scenario_cpus=cpus[1] if cpus else None)
     progress.note(f"{label}: {t.sim_s:.0f} s simulated in {t.wall_s:.2f} s "
                   f"(x{t.realtime_factor:.1f}), exit {t.exit_code}")
     return t
@@ -210,12 +212,14 @@ def _commands(tmp: Path, opts: BenchOptions, progress: Progress) -> _CommandsPar
     run_command(warm, tmp / "out_warmup", jobs=1, log=True)
     progress.phase(f"dense runs: {opts.seeds} x {dur:g} s, --jobs 1, logs on")
     runs: dict[str, CommandTiming] = {}
-    cpus: frozenset[int] | None = None
+    cpus: tuple[frozenset[int], frozenset[int]] | None = None
     isolation: dict[str, Any] | None = None
     if opts.isolated:
         iso = isolate()
         progress.note(iso.line())
-        cpus = frozenset({iso.cpu})
+        # the scenario process alone on its core; the command's own processes (the
+        # parent's watchers, the forkserver) on the others, not beside the timed loop
+        cpus = (iso.rest or frozenset({iso.cpu}), frozenset({iso.cpu}))
         isolation = {"cpu": iso.cpu, "sample_s": iso.sample_s, "line": iso.line(),
                      "others": [asdict(o) for o in iso.others]}
     runs["dense_jobs1_log"] = _timed(progress, "dense_jobs1_log", dense_toml,

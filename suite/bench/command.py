@@ -42,6 +42,8 @@ from typing import Any
 
 import numpy as np
 
+from suite.exec.worker import SCENARIO_CPUS_ENV
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -180,15 +182,20 @@ class CommandTiming:
 
 
 def run_command(catalog: Path, out: Path, jobs: int, log: bool,
-                cpus: frozenset[int] | None = None) -> CommandTiming:
+                cpus: frozenset[int] | None = None,
+                scenario_cpus: frozenset[int] | None = None) -> CommandTiming:
     """Run ``catalog`` through the command line into ``out`` (must not exist) and read
     back what it wrote; every line it prints is stamped as it arrives. ``cpus``: pin the
-    command and every process it starts to these CPUs (``taskset``'s affinity)."""
+    command and every process it starts to these CPUs (``taskset``'s affinity);
+    ``scenario_cpus``: the scenario processes pin themselves to these instead
+    (:data:`suite.exec.worker.SCENARIO_CPUS_ENV`)."""
     if out.exists():
         raise FileExistsError(f"{out} exists: the bench runs into fresh folders")
     args = [sys.executable, "-m", "suite", "run", str(catalog), "--out", str(out),
             "--jobs", str(jobs)] + ([] if log else ["--no-log"])
     env = dict(os.environ, PYTHONUNBUFFERED="1")
+    if scenario_cpus:
+        env[SCENARIO_CPUS_ENV] = ",".join(str(c) for c in sorted(scenario_cpus))
     epoch0 = time.time()  # the run files' mtimes are on this clock
     t0 = time.perf_counter()
     lines: list[StampedLine] = []

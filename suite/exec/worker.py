@@ -25,9 +25,13 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-__all__ = ["TERM_GRACE_S", "become_worker", "signal_worker", "terminate_workers"]
+__all__ = ["SCENARIO_CPUS_ENV", "TERM_GRACE_S", "become_worker", "signal_worker",
+           "terminate_workers"]
 
 TERM_GRACE_S = 2.0  # SIGTERM, then this long [s], then SIGKILL
+# CPUs (comma-separated indices) every scenario process pins itself to: how
+# `hwyeval bench --isolated` gives the timed runs a core of their own (docs/bench.md)
+SCENARIO_CPUS_ENV = "HWYEVAL_SCENARIO_CPUS"
 
 
 def become_worker() -> None:
@@ -45,6 +49,19 @@ def become_worker() -> None:
     if parent is not None:
         threading.Thread(target=_die_with_parent, args=(parent,), name="hwyeval-parent-watch",
                          daemon=True).start()
+    _pin_to_scenario_cpus()
+
+
+def _pin_to_scenario_cpus() -> None:
+    """Pin this process to the CPUs of :data:`SCENARIO_CPUS_ENV`, if set (ignored when
+    malformed or not allowed: pinning is for measuring, never a reason to fail a run)."""
+    text = os.environ.get(SCENARIO_CPUS_ENV, "").strip()
+    if not text:
+        return
+    try:
+        os.sched_setaffinity(0, {int(c) for c in text.split(",")})
+    except (ValueError, OSError):
+        pass
 
 
 def _die_with_parent(parent: Any) -> None:
