@@ -23,7 +23,7 @@ from reports.metrics.collision_events import (
     SWEPT,
     SumoEpisode,
 )
-from reports.metrics.context import RunContext
+from reports.metrics.context import RunContext, neighbour_trace_rows
 from reports.record import AGENT_REPLAYED, SumoCollision
 from reports.record.columns import BoolColumn, IntColumn
 
@@ -79,12 +79,6 @@ def _after_jump(ctx: RunContext, rows: IntColumn, vid: str, t: float) -> bool:
 # ------------------------------------------------------------------ contacts
 
 
-def _trace_rows(ctx: RunContext) -> IntColumn:
-    """Trace row of every neighbour row (-1 where its step is no trace step)."""
-    nb = ctx.record.neighbours
-    rows = np.full(len(nb), -1, dtype=np.int64)
-    if ctx.n == 0 or len(nb) == 0:
-        return rows
     steps = ctx.record.trace.step
     order = np.argsort(steps, kind="stable")
     pos = np.clip(np.searchsorted(steps[order], nb.step), 0, len(order) - 1)
@@ -140,7 +134,7 @@ def _swept(ctx: RunContext, rows: IntColumn, boxes: np.ndarray, usable: BoolColu
 def neighbour_contacts(ctx: RunContext) -> _NeighbourContacts:
     """Sampled and swept contacts of the ego box with every recorded neighbour row."""
     nb = ctx.record.neighbours
-    rows = _trace_rows(ctx)
+    rows = neighbour_trace_rows(ctx)
     boxes = box_corners(nb.x_m, nb.y_m, nb.heading_rad, nb.length_m, nb.width_m)
     none = np.zeros(len(nb), dtype=bool)
     if ctx.n == 0 or len(nb) == 0:

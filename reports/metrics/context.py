@@ -22,7 +22,7 @@ import numpy as np
 
 from reports.geometry import ego_box_centres, ego_box_corners
 from reports.record import RunRecord
-from reports.record.columns import FloatColumn
+from reports.record.columns import FloatColumn, IntColumn
 
 
 def median_time_step_s(t_s: np.ndarray) -> float:
@@ -87,3 +87,20 @@ def build_context(record: RunRecord) -> RunContext:
                       durations_s=_durations_s(t_s, period), box_x_m=cx, box_y_m=cy,
                       psi_rad=psi, corners_m=corners, vel_x_mps=u * c - v * s,
                       vel_y_mps=u * s + v * c)
+
+
+def neighbour_trace_rows(ctx: RunContext) -> IntColumn:
+    """The trace row of every neighbour row, (len(neighbours),): the row whose step is
+    the neighbour row's step, -1 where its step is no trace step. The one matching of
+    the neighbours to the trace (collisions, time to collision)."""
+    nb = ctx.record.neighbours
+    rows = np.full(len(nb), -1, dtype=np.int64)
+    if ctx.n == 0 or len(nb) == 0:
+        return rows
+    steps = ctx.record.trace.step
+    order = np.argsort(steps, kind="stable")
+    pos = np.clip(np.searchsorted(steps[order], nb.step), 0, len(order) - 1)
+    matched = order[pos]
+    ok = steps[matched] == nb.step
+    rows[ok] = matched[ok]
+    return rows

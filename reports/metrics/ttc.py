@@ -83,7 +83,7 @@ import numpy as np
 
 from reports import geometry
 from reports.geometry import PathFrame, box_corners, polyline_frenet
-from reports.metrics.context import RunContext
+from reports.metrics.context import RunContext, neighbour_trace_rows
 from reports.record.columns import AGENT_REPLAYED, BoolColumn, FloatColumn, IntColumn
 
 
@@ -207,17 +207,11 @@ def on_road(boxes: Boxes, frame: PathFrame, params: TtcParams = DEFAULT_TTC
 def _matched_rows(ctx: RunContext) -> tuple[IntColumn, BoolColumn] | None:
     """(trace row of each neighbour row whose step is a trace step, which neighbour rows
     those are); None if there is none."""
-    nb = ctx.record.neighbours
-    if ctx.n == 0 or len(nb) == 0:
-        return None
-    steps = ctx.record.trace.step
-    order = np.argsort(steps, kind="stable")
-    pos = np.clip(np.searchsorted(steps[order], nb.step), 0, len(order) - 1)
-    rows = order[pos]
-    valid = steps[rows] == nb.step
+    rows = neighbour_trace_rows(ctx)
+    valid = rows >= 0
     if not np.any(valid):
         return None
-    return rows[valid].astype(np.int64), valid
+    return rows[valid], valid
 
 
 def _world_boxes(ctx: RunContext, rows: IntColumn, valid: BoolColumn) -> tuple[Boxes, Boxes]:
