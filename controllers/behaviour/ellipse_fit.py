@@ -3,9 +3,10 @@
 The planner's barrier on an ellipse, -log(value) with value = (ds / A)² + (dy / B)² - 1,
 is undefined with the ego's CG inside (value <= 0), and the planner fails there. So an
 ellipse that would contain the ego (a car alongside in the next lane, a lead followed
-at standstill distance) is narrowed: :func:`leave_ego_outside`. The behaviour does it
-when it decides (:mod:`controllers.behaviour.obstacle_choice`) and again at each control
-step between two decisions, on the ellipses moved by their own prediction
+at standstill distance) is narrowed: :func:`leave_ego_outside`, applied to a set of
+ellipses by :meth:`controllers.behaviour.types.Obstacles.around_ego`. The behaviour does
+it when it decides (:mod:`controllers.behaviour.obstacle_choice`) and again at each
+control step between two decisions, on the ellipses moved by their own prediction
 (:meth:`controllers.behaviour.types.Decision.ahead`), since the ego moves meanwhile.
 Pure arithmetic on floats: no import of the behaviour's types.
 """

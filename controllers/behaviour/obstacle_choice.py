@@ -24,7 +24,6 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from controllers.behaviour.ellipse_fit import leave_ego_outside
 from controllers.behaviour.ellipses import ellipse_semi_axes, offset_centre_y
 from controllers.behaviour.perception import LaneScene
 from controllers.behaviour.types import ObstaclePolicy, Obstacles, Side
@@ -103,13 +102,11 @@ def plan_ellipses(sc: LaneScene, order: IntpArray, plan: LanePlan, side: int,
             # ego's offset) no lateral gradient that would push the ego sideways
             # while it waits at standstill distance (dc/dy = 2 dy / B²).
             semi_b[k] = max(semi_b[k], _FOLLOW_WALL_LANES * lane_width_m)
-        semi_a[k], semi_b[k] = leave_ego_outside(
-            float(sc.ego.s_m - fn.s_m[i]), float(sc.ego.lat_m - y[k]), float(semi_a[k]),
-            float(semi_b[k]), 0.5 * float(fn.length_m[i] + ego_length_m))
     return Obstacles(s_m=fn.s_m[order].copy(), y_m=y, speed_s_mps=fn.v_s_mps[order].copy(),
                      speed_y_mps=fn.v_y_mps[order].copy(), semi_a_m=semi_a,
                      semi_b_m=semi_b, vehicle_ids=tuple(sc.traffic.ids[i] for i in order),
-                     half_length_m=0.5 * (fn.length_m[order] + ego_length_m))
+                     half_length_m=0.5 * (fn.length_m[order] + ego_length_m)
+                     ).around_ego(float(sc.ego.s_m), float(sc.ego.lat_m))
 
 
 @numba.njit(cache=True)
