@@ -20,7 +20,6 @@ is not):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields
 from typing import Any, ClassVar
 
@@ -199,8 +198,9 @@ RELATIVE_START = "ahead_of_ego_m"
 
 def resolve_relative_start(item: dict[str, Any], ego: Any) -> tuple[dict[str, Any], str | None]:
     """An actor table with ``ahead_of_ego_m`` [m] turned into one with ``pos_m`` = the
-    ego's ``pos_m`` + that (front bumpers, along the route; negative: behind the ego);
-    returns (the table, a problem or None). A table without it is returned as it is."""
+    ego's ``pos_m`` + that (front bumpers, along the route; negative: behind the ego, but
+    not before the route's start); returns (the table, a problem or None). A table
+    without it is returned as it is."""
     if RELATIVE_START not in item:
         return item, None
     ahead = item[RELATIVE_START]
@@ -211,8 +211,10 @@ def resolve_relative_start(item: dict[str, Any], ego: Any) -> tuple[dict[str, An
     ego_pos = ego.get("pos_m") if isinstance(ego, dict) else None
     if not isinstance(ego_pos, int | float) or not rules.is_number(ego_pos):
         return item, "an ego with a pos_m to be relative to"
+    pos = float(ego_pos) + float(ahead)
+    if pos < 0.0:
+        return item, (f"a place on the route: the ego's pos_m + this must be >= 0 (it is "
+                      f"{pos:g} m)")
     out = {k: v for k, v in item.items() if k != RELATIVE_START}
-    out["pos_m"] = float(ego_pos) + float(ahead)
-    if not math.isfinite(out["pos_m"]):  # pragma: no cover - both finite above
-        return item, "a finite position"
+    out["pos_m"] = pos
     return out, None

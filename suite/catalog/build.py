@@ -181,9 +181,6 @@ def _relative_starts(raw: Any, ego: Any, report: Report) -> Any:
             out.append(item)
             continue
         resolved, problem = resolve_relative_start(item, ego)
-        if problem is None and resolved.get("pos_m", 0.0) < 0.0 and RELATIVE_START in item:
-            problem = (f"a place on the route: the ego's pos_m + this must be >= 0 "
-                       f"(it is {resolved['pos_m']:g} m)")
         if problem is not None:
             report.add(f"actors.{i}.{RELATIVE_START}", problem, item.get(RELATIVE_START))
             continue
