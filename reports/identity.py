@@ -56,11 +56,11 @@ HASH_KEYS = (CONTENT_KEY, TEST_KEY, LIMITS_KEY, SUT_KEY, CODE_KEY, CONTROLLER_KE
 # The kinds of change between two runs of one scenario, in the order they are named.
 CHANGE_KINDS = ("test", "limits", "sut")
 # Scenario fields that are not the test: its names, where things are, the wall-clock
-# budget, the system under test (controller), the limits (criteria) and the expectation
-# (xfail). sweep_values repeats values of other fields (a swept controller option
-# among them), so it is left out too.
+# budget, the system under test (controller), the limits (criteria), the expectation
+# (xfail) and the groups it is reported in (labels). sweep_values repeats values of
+# other fields (a swept controller option among them), so it is left out too.
 NOT_TEST_FIELDS = ("name", "family", "sweep_values", "catalog_path", "net_path",
-                   "timeout_s", "controller", "criteria", "xfail", *HASH_KEYS)
+                   "timeout_s", "controller", "criteria", "xfail", "labels", *HASH_KEYS)
 # RunInfo's own test fields, for a run without a recorded scenario_spec
 _INFO_TEST_FIELDS = ("net_name", "duration_s", "step_s", "seed", "target_speed_mps",
                      "allow_shoulder", "friction", "record_radius_m")

@@ -48,17 +48,20 @@ def alks(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+def _same_files(made_dir: Path, bundled: Path) -> None:
+    made = sorted(p.relative_to(made_dir) for p in made_dir.rglob("*") if p.is_file())
+    kept = sorted(p.relative_to(bundled) for p in bundled.rglob("*") if p.is_file())
+    assert made == kept
+    changed = [str(rel) for rel in made
+               if (made_dir / rel).read_bytes() != (bundled / rel).read_bytes()]
+    assert changed == []
+
+
 def test_the_bundled_pack_is_what_the_import_makes(alks: Path) -> None:
     """catalogs/r157/imported is the import of catalogs/r157/source's templates, byte for
     byte: an importer change that alters it fails here until the folder is regenerated
     (catalogs/r157/README.md has the command)."""
-    bundled = PACK / "imported"
-    made = sorted(p.relative_to(alks) for p in alks.rglob("*") if p.is_file())
-    kept = sorted(p.relative_to(bundled) for p in bundled.rglob("*") if p.is_file())
-    assert made == kept
-    changed = [str(rel) for rel in made
-               if (alks / rel).read_bytes() != (bundled / rel).read_bytes()]
-    assert changed == []
+    _same_files(alks, PACK / "imported")
     # the MPL-2.0 files keep their licence: the text beside them, a header in each
     assert "Mozilla Public License Version 2.0" in (PACK / "source" / "LICENSE").read_text()
     assert all("MPL-2.0" in f.read_text() for f in _templates())
@@ -78,6 +81,22 @@ def test_every_template_imports(alks: Path) -> None:
     assert init.speed_mps == pytest.approx(40.0 / 3.6)
 
 
+def test_the_bundled_variations_are_what_the_import_makes(tmp_path: Path) -> None:
+    """catalogs/r157/variations is the import of the variation files with three sets
+    each (--variants 3 --r157), byte for byte; each scenario is labelled with the section
+    its template names."""
+    files = sorted(LOGICAL.glob("*_variation*.xosc"))
+    outcome = import_files(files, tmp_path, ImportOptions(r157=True, variants=3))
+    assert not outcome.failures, [str(f) for f in outcome.failures]
+    _same_files(tmp_path, PACK / "variations")
+    catalog = load_catalog(PACK / "variations" / "catalog.toml")
+    sections = {s.name: s.labels["r157_section"] for s in catalog}
+    # every file's own scenario and its sets but the crossing pedestrian's three (their
+    # ego lane drives against the road's reference line: refused, with a warning)
+    assert len(sections) == 15 + 3 * 15 - 1 - 3
+    assert all(v == f"4.{k.split('_')[3]}" for k, v in sections.items())
+
+
 @pytest.mark.parametrize("stem", sorted(SETS))
 def test_every_variation_file_expands(stem: str, tmp_path: Path) -> None:
     path = LOGICAL / f"alks_scenario_{stem}_variation.xosc"
@@ -85,11 +104,25 @@ def test_every_variation_file_expands(stem: str, tmp_path: Path) -> None:
     assert (r.sets, r.invalid_sets) == SETS[stem]
 
 
-def test_every_template_runs_none_in_error(alks: Path, tmp_path: Path) -> None:
-    out = tmp_path / "runs"
-    rc = main(["run", str(alks / "catalog.toml"), "--out", str(out), "--jobs", "1",
-               "--no-log", "--no-fail"])
+@pytest.fixture(scope="module")
+def pack_runs(alks: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The 15 templates run with two_loop, and three (4.2_2, 4.2_3 crossing pedestrian,
+    4.4_2 unavoidable cut-in) with r157_reference: the two output folders."""
+    out = tmp_path_factory.mktemp("runs")
+    rc = main(["run", str(alks / "catalog.toml"), "--out", str(out / "two_loop"), "--jobs",
+               "1", "--no-log", "--no-fail"])
     assert rc == 0
+    text = (alks / "catalog.toml").read_text()
+    ref = alks / "reference.toml"
+    ref.write_text(text.replace('controller = "two_loop"', 'controller = "r157_reference"'))
+    rc = main(["run", str(ref), "--out", str(out / "reference"), "--jobs", "1", "--no-log",
+               "--no-fail", "--filter", "*4_[24]_[23]_*"])
+    assert rc == 0
+    return out / "two_loop", out / "reference"
+
+
+def test_every_template_runs_none_in_error(pack_runs: tuple[Path, Path]) -> None:
+    out = pack_runs[0]
     with (out / "results.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 15
@@ -104,3 +137,30 @@ def test_every_template_runs_none_in_error(alks: Path, tmp_path: Path) -> None:
     end = next(t for t, _, n, w in log["transitions"]
                if n == "CutInAction" and w == "endTransition")
     assert log["stopped_at_s"] == pytest.approx(end + 10.0, abs=0.2)
+
+
+def test_the_pack_report_groups_by_section_with_the_reference_beside(
+        pack_runs: tuple[Path, Path]) -> None:
+    """hwyeval r157: a row per template under its section, the reference driver's
+    outcome beside the three it ran, the exit code 0 exactly when every row's acceptance
+    is met."""
+    system, reference = pack_runs
+    rc = main(["r157", str(system), "--reference", str(reference)])
+    with (system / "r157.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 15
+    per_section: dict[str, int] = {}
+    for r in rows:
+        per_section[r["section"]] = per_section.get(r["section"], 0) + 1
+    assert per_section == {"4.1": 3, "4.2": 4, "4.3": 2, "4.4": 2, "4.5": 2, "4.6": 2}
+    with (reference / "results.csv").open() as f:
+        ref_runs = {r["scenario"]: r for r in csv.DictReader(f)}
+    assert len(ref_runs) >= 2
+    for r in rows:
+        mine = ref_runs.get(r["scenario"])
+        assert r["reference_status"] == ("" if mine is None else mine["status"])
+        if mine is not None:
+            assert int(r["reference_collisions"]) == int(float(mine["collisions"]))
+    assert rc == (0 if all(r["acceptance"] == "met" for r in rows) else 1)
+    page = (system / "r157.html").read_text()
+    assert page.count("<h3 ") == 6  # one table per section

@@ -110,7 +110,10 @@ def test_variation_files_expand_with_their_counts(tmp_path: Path) -> None:
     r = import_file(DATA / "bend_cut_in_variation.xosc", tmp_path, ImportOptions(variants=2))
     assert (r.sets, r.invalid_sets) == (6, 2)  # Gap 5 / 17.5 / 30 x two value sets
     sets = json.loads((tmp_path / "bend_cut_in_variation.sets.json").read_text())
-    assert [s["Gap"] for s in sets["valid"]] == ["17.5", "17.5", "30.0", "30.0"]
+    assert sets["valid"] == 4  # of the six, Gap 17.5 and 30 twice each
+    # two of them, spread evenly: the valid sets 0 and 2, Gap 17.5 and 30
+    assert [(s["set"], s["values"]["Gap"]) for s in sets["imported"]] == \
+        [(0, "17.5"), (2, "30.0")]
     assert len(r.names) == 3
     r = import_file(DATA / "bend_cut_in_stochastic.xosc", tmp_path, ImportOptions())
     assert (r.sets, r.invalid_sets) == (25, 0)

@@ -31,6 +31,7 @@ from suite.catalog.specs import (
     StalledSpec,
     TrafficSpec,
     XfailSpec,
+    labels_problem,
     sumo_step_problem,
 )
 from suite.catalog.storyboard import Storyboard, StoryError, story_from_json
@@ -80,6 +81,7 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
     replay = _replay(d.get("replay", MISSING), catalog_path, report)
     xfail = _spec(XfailSpec, d.get("xfail", MISSING), "xfail", report)  # a known failure
     story = _storyboard(d.get("storyboard", MISSING), catalog_path, report)
+    labels = _labels(d.get("labels", {}), report)
     _check_recorded_driver(controller, d.get("replay", MISSING), report)
     if network is not None and route is not None:
         check_placements(network, route, d.get("ego"), stalled_raw, traffic,
@@ -105,7 +107,8 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
             ramp_traffic=tuple(r for r in ramps if r is not None),
             actors=tuple(a for a in actors if a is not None),
             sumo_step_s=scalars.get("sumo_step_s"), replay=replay, xfail=xfail,
-            storyboard=None if story is None else str(d["storyboard"]), story=story)
+            storyboard=None if story is None else str(d["storyboard"]), story=story,
+            labels=labels)
     except SpecError as exc:  # pragma: no cover - the checks above mirror these
         report.add(exc.field, exc.expected, exc.got)
         return None
@@ -151,6 +154,16 @@ def _criteria(d: dict[str, Any], report: Report) -> dict[str, Any]:
         elif v is None or override_problem(v) is not None:
             report.add(f"criteria.{k}", 'a finite number or "off"', v)
     return criteria
+
+
+def _labels(raw: Any, report: Report) -> dict[str, str]:
+    """The scenario's labels (:func:`suite.catalog.specs.labels_problem`), {} if invalid
+    (reported)."""
+    problem = labels_problem(raw)
+    if problem is not None:
+        report.add("labels", problem, raw)
+        return {}
+    return dict(raw)
 
 
 def _stalled(raw: Any, report: Report) -> list[StalledSpec | None]:

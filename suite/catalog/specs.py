@@ -126,6 +126,26 @@ class XfailSpec:
         rules.check_fields(self)
 
 
+# ---------------------------------------------------------------- labels
+
+MAX_LABEL_LEN = 200  # characters of a label's value
+
+
+def labels_problem(v: Any) -> str | None:
+    """None when ``v`` is a table of label name ([a-z0-9_]+) -> non-empty string of at
+    most :data:`MAX_LABEL_LEN` characters, else what was expected."""
+    what = (f"a table of name ([a-z0-9_]+) -> non-empty string of at most {MAX_LABEL_LEN} "
+            "characters")
+    if not isinstance(v, Mapping):
+        return what
+    for k, x in v.items():
+        if not isinstance(k, str) or rules.name_rule(k) is not None:
+            return what
+        if not isinstance(x, str) or not x.strip() or len(x) > MAX_LABEL_LEN:
+            return what
+    return None
+
+
 # ---------------------------------------------------------------- criteria
 
 CRITERION_OFF = "off"  # reports.metrics.criteria.OFF: switches a criterion off
@@ -174,6 +194,9 @@ class Scenario:
     # file as the catalog names it and its resolved content; None: none
     storyboard: str | None = None
     story: Storyboard | None = None
+    # names of the groups the scenario belongs to (e.g. r157_section = "4.4"): read by
+    # the reports to group runs, no part of the test (reports.identity.NOT_TEST_FIELDS)
+    labels: Mapping[str, str] = field(default_factory=lambda: FrozenMap())
 
     _RULES: ClassVar[dict[str, Rule]] = {
         "name": rules.name_rule, "family": rules.name_rule,
@@ -181,7 +204,7 @@ class Scenario:
         "seed": rules.integer(0, rules.MAX_SEED), "allow_shoulder": rules.boolean,
         "criteria": _criteria_map, "record_radius_m": rules.num(0.0, strict=True),
         "timeout_s": rules.num(0.0, strict=True, optional=True), "friction": rules.friction,
-        "sumo_step_s": _optional_sumo_step,
+        "sumo_step_s": _optional_sumo_step, "labels": labels_problem,
     }
 
     def __post_init__(self) -> None:
@@ -236,6 +259,7 @@ class Scenario:
         object.__setattr__(self, "criteria", FrozenMap(
             {k: (v if v == CRITERION_OFF else float(v)) for k, v in self.criteria.items()}))
         object.__setattr__(self, "sweep_values", FrozenMap(self.sweep_values))
+        object.__setattr__(self, "labels", FrozenMap(dict(self.labels)))
         rules.as_float(self, "duration_s", "step_s", "record_radius_m", "friction")
         if self.timeout_s is not None:
             rules.as_float(self, "timeout_s")
@@ -268,6 +292,8 @@ class Scenario:
 
             out["storyboard"] = {"file": self.storyboard,
                                  "sha256": _sha256(story_to_json(self.story))}
+        if self.labels:  # likewise: an unlabelled scenario keeps its dict
+            out["labels"] = thaw(self.labels)
         return out
 
     def _as_dict(self) -> dict[str, Any]:

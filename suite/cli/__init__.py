@@ -60,6 +60,7 @@ from suite.cli.common import (
 from suite.cli.history import add_history_parser
 from suite.cli.importer import add_import_parser
 from suite.cli.paper import add_paper_parser
+from suite.cli.r157 import add_r157_parser
 from suite.cli.run import cmd_run
 from suite.cli.search import add_search_parser
 
@@ -189,6 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_plugin(s)
     s.set_defaults(func=cmd_controllers)
     add_paper_parser(sub)
+    add_r157_parser(sub)
     add_search_parser(sub)
     add_import_parser(sub)
     add_history_parser(sub)

@@ -19,6 +19,7 @@ from suite.cli.common import (
     EXIT_INPUT,
     EXIT_OK,
     Output,
+    UsageError,
     add_import_output,
     err,
     whole_number,
@@ -36,6 +37,13 @@ def _seconds(text: str) -> float:
     if not 0.0 < value < float("inf"):
         raise argparse.ArgumentTypeError(f"expected a finite duration > 0, got {text}")
     return value
+
+
+def _parameter(text: str) -> tuple[str, str]:
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    return name.strip(), value.strip()
 
 
 def add_openscenario_parser(fmt: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -56,7 +64,12 @@ def add_openscenario_parser(fmt: argparse._SubParsersAction[argparse.ArgumentPar
                    "variation file as scenarios (default 0: count and list them only)")
     c.add_argument("--r157", action="store_true",
                    help="judge the scenarios by UN R157's acceptance criteria too (the "
-                        "minimum following time gap, docs/metrics.md)")
+                        "minimum following time gap, docs/metrics.md) and label each with "
+                        "its Annex 5 section (hwyeval r157)")
+    c.add_argument("--param", action="append", type=_parameter, default=[],
+                   metavar="NAME=VALUE", help="replace the declared value of the top-level "
+                   "parameter NAME in every file (repeatable; a variation's sets too; with "
+                   "--ignore-constraints to go beyond its constraints)")
     c.set_defaults(func=cmd_import_openscenario)
 
 
@@ -67,12 +80,14 @@ def cmd_import_openscenario(args: argparse.Namespace) -> int:
 
     out = Output()
     try:
+        options = ImportOptions(ego=args.ego, ignore_constraints=args.ignore_constraints,
+                                duration_s=args.duration_s, variants=args.variants,
+                                r157=args.r157, parameters=tuple(args.param))
+    except ValueError as exc:
+        raise UsageError(f"--param: {exc}") from None
+    try:
         with writing_to(Path(args.out)):
-            outcome = import_files([Path(f) for f in args.files], Path(args.out),
-                                   ImportOptions(ego=args.ego,
-                                                 ignore_constraints=args.ignore_constraints,
-                                                 duration_s=args.duration_s,
-                                                 variants=args.variants, r157=args.r157),
+            outcome = import_files([Path(f) for f in args.files], Path(args.out), options,
                                    overwrite=args.overwrite)
     except OutputRefused as exc:
         err(str(exc))

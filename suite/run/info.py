@@ -33,8 +33,9 @@ __all__ = ["CONTENT_KEY", "UNHASHED_FIELDS", "ego_box", "file_sha256", "scenario
            "scenario_info", "scenario_setup_hashes", "scenario_tracks_path"]
 
 # Fields of Scenario.as_dict() that say where things are or how long we may wait, not
-# what is simulated: they do not change a run's result, so they are not hashed.
-UNHASHED_FIELDS = ("catalog_path", "net_path", "timeout_s")
+# what is simulated (labels: the groups it is reported in): they do not change a
+# run's result, so they are not hashed.
+UNHASHED_FIELDS = ("catalog_path", "net_path", "timeout_s", "labels")
 _CHUNK_BYTES = 1 << 20
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -52,6 +53,8 @@ DEFAULT_DURATION_S = 60.0
 # following time gap, kept beyond 3 s of each shortfall. No collision caused by the
 # system is the default max_at_fault_collisions = 0 already.
 R157_CRITERIA = {"max_r157_gap_shortfall_s": 0.0}
+R157_SECTION_LABEL = "r157_section"  # the label naming a scenario's Annex 5 section
+_R157_SECTION = re.compile(r"(?<![\d.])4[._ ]([1-6])(?![\d])")
 MIN_ROAD_AHEAD_M = 50.0  # an ego starting closer than this [m] to its route's end is refused
 
 
@@ -61,13 +64,18 @@ class ImportOptions:
     ``ignore_constraints``; ``duration_s`` [s]: the run's length when the stop trigger
     is not a plain simulation time (None: :data:`DEFAULT_DURATION_S`); ``variants``: how
     many parameter sets of a variation file become scenarios; ``r157``: each scenario
-    is judged by UN R157's acceptance criteria too (:data:`R157_CRITERIA`)."""
+    is judged by UN R157's acceptance criteria too (:data:`R157_CRITERIA`) and labelled
+    with its Annex 5 section (:func:`r157_section`); ``parameters``: (name, value)
+    pairs that replace the declared values of the files' top-level parameters (a
+    variation's parameter set included: the command line wins), each of them declared
+    by every file imported."""
 
     ego: str | None = None
     ignore_constraints: bool = False
     duration_s: float | None = None
     variants: int = 0
     r157: bool = False
+    parameters: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
         if self.duration_s is not None and not (math.isfinite(self.duration_s)
@@ -75,6 +83,10 @@ class ImportOptions:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s!r}")
         if self.variants < 0:
             raise ValueError(f"variants must be >= 0, got {self.variants}")
+        names = [n for n, _ in self.parameters]
+        if len(set(names)) != len(names):
+            twice = sorted(n for n in set(names) if names.count(n) > 1)
+            raise ValueError(f"parameters set twice: {twice}")
 
 
 @dataclass(frozen=True)
@@ -180,7 +192,8 @@ def build_scenario(source: Path, out_dir: Path, options: ImportOptions,
     """Read, resolve and convert one scenario file (module docstring)."""
     root = read_xml(source).getroot()
     _check_top(root)
-    params = declare(root, overrides, options.ignore_constraints)
+    params = declare(root, {**(overrides or {}), **dict(options.parameters)},
+                     options.ignore_constraints)
     resolve_tree(root, params)
     resolve_references(root, CatalogIndex.of(root, source))
     check_vocabulary(root)
@@ -223,7 +236,26 @@ def build_scenario(source: Path, out_dir: Path, options: ImportOptions,
                              "duration_s": _duration(stop, options, notes)}
     if options.r157:
         table["criteria"] = dict(R157_CRITERIA)
+        section = r157_section(root, source)
+        if section is None:
+            notes.append("no R157 section (4.1 to 4.6) in the file header's description "
+                         "or the file's name: not labelled with one")
+        else:
+            table["labels"] = {R157_SECTION_LABEL: section}
     return _Built(table, story, notes)
+
+
+def r157_section(root: Any, source: Path) -> str | None:
+    """UN R157 Annex 5's test section ("4.1" to "4.6") a scenario file names: the first
+    "4.N" or "4_N" (N = 1..6, not followed by a digit) in its FileHeader's description,
+    else in its file name; None when neither names one."""
+    header = root.find("FileHeader")
+    texts = ("" if header is None else str(header.get("description", "")), source.stem)
+    for text in texts:
+        m = _R157_SECTION.search(text)
+        if m is not None:
+            return f"4.{m.group(1)}"
+    return None
 
 
 def _front(p: sb.RoutePosition, e: sb.Entity) -> sb.RoutePosition:
@@ -256,15 +288,13 @@ def _import_variation(source: Path, root: Any, out_dir: Path,
         except OscImportError:
             invalid += 1
     stem = out_guard.output_stem(source, catalog_out.OUTPUTS)
-    catalog_out.write_atomic(out_dir / f"{stem}.sets.json", json.dumps(
-        {"template": template.name, "sets": len(sets), "violating_constraints": invalid,
-         "valid": valid}, indent=0) + "\n")
     note = (f"{len(sets)} parameter sets, {invalid} violate the template's constraints "
             f"({stem}.sets.json)")
     names = [_write(build_scenario(template, out_dir, options), out_dir, stem, template,
                     [note])]
     n = min(options.variants, len(valid))
     notes = [note]
+    imported: list[dict[str, Any]] = []
     for k in range(n):
         idx = (k * len(valid)) // n
         try:
@@ -274,6 +304,12 @@ def _import_variation(source: Path, root: Any, out_dir: Path,
             continue
         names.append(_write(built, out_dir, f"{stem}__set{idx}", template,
                             [f"parameter set {idx}: {valid[idx]}"]))
+        imported.append({"set": idx, "scenario": names[-1], "values": valid[idx]})
+    # the counts and the sets imported, not every valid set: the ALKS files expand to
+    # up to 40 000 of them (12 MB); the variation file itself lists them all
+    catalog_out.write_atomic(out_dir / f"{stem}.sets.json", json.dumps(
+        {"template": template.name, "sets": len(sets), "violating_constraints": invalid,
+         "valid": len(valid), "imported": imported}, indent=0) + "\n")
     return FileResult(source, tuple(names), len(sets), invalid, tuple(notes),
                       time.perf_counter() - t0)
 
