@@ -1,5 +1,7 @@
-"""suite.exec.arrow_without_pandas: after it, pyarrow converts numpy arrays without
-importing pandas, and code that imports pandas itself still converts both ways.
+"""suite.exec.arrow_without_pandas: after ``settle_pyarrow_without_pandas()`` (which
+``prepare_process()`` calls), pyarrow converts numpy arrays without importing pandas, and
+code that imports pandas itself still converts both ways; importing the module alone
+changes nothing.
 
 Each check runs in a fresh interpreter (this test process may have pandas loaded)."""
 
@@ -16,8 +18,10 @@ SCRIPT = """
 import sys
 import numpy as np
 import pyarrow as pa
-import suite.exec.arrow_without_pandas  # noqa: F401
-assert "pandas" not in sys.modules, "the module itself imported pandas"
+from suite.exec.arrow_without_pandas import settle_pyarrow_without_pandas
+settle_pyarrow_without_pandas()
+settle_pyarrow_without_pandas()  # again: a no-op
+assert "pandas" not in sys.modules, "settling imported pandas"
 a = pa.array(np.arange(3.0))
 s = pa.array(np.array(["x", "yz"], dtype=np.str_))
 assert (a.type, s.type) == (pa.float64(), pa.string())
@@ -47,8 +51,25 @@ def test_a_python_string_would_import_pandas() -> None:
     res = _run("""
         import sys
         import pyarrow as pa
-        import suite.exec.arrow_without_pandas  # noqa: F401
+        from suite.exec.arrow_without_pandas import settle_pyarrow_without_pandas
+        settle_pyarrow_without_pandas()
         pa.scalar("x")
+        print("pandas" in sys.modules)
+    """)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert res.stdout.strip() == "True"
+
+
+def test_importing_the_module_settles_nothing() -> None:
+    """Only the call settles pyarrow: after a bare import, pyarrow's first numpy
+    conversion still imports pandas as it would without hwyeval."""
+    res = _run("""
+        import sys
+        import numpy as np
+        import pyarrow as pa
+        import suite.exec.arrow_without_pandas  # noqa: F401
+        assert "pandas" not in sys.modules
+        pa.array(np.zeros(1))
         print("pandas" in sys.modules)
     """)
     assert res.returncode == 0, res.stderr[-2000:]

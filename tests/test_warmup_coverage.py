@@ -1,7 +1,8 @@
-"""The forkserver's preload (suite.exec.warmup) leaves nothing for a scenario process to
-load: after it, running scenarios loads no numba kernel from the on-disk cache (each
-load is 5-25 ms of every run: ``_gamma_many`` alone was 20 ms of each run until the
-warm-up called it) and imports no heavy module; and the processes it forks find the
+"""The forkserver's preload (suite.exec.prepare.prepare_process, with the kernels of
+suite.exec.warmup) leaves nothing for a scenario process to load: after it, running
+scenarios loads no numba kernel from the on-disk cache (each load is 5-25 ms of every
+run: ``_gamma_many`` alone was 20 ms of each run until the warm-up called it) and imports
+no heavy module; and the processes it forks find the
 preload's objects frozen for the garbage collector.
 
 Run in a fresh interpreter (this test process has loaded kernels already), on real
@@ -50,8 +51,8 @@ traffic = { vehicles_per_hour = 1200, seed = 4 }
 SCRIPT = """
 import json, sys
 from pathlib import Path
-for name in {preload!r}:
-    __import__(name)
+from suite.exec.prepare import prepare_process
+prepare_process()
 import numba.core.caching as caching
 from suite.catalog import load_catalog
 from suite.run.runner import RunOptions, run_scenario
@@ -77,7 +78,7 @@ print(json.dumps({{"loads": loads, "statuses": statuses,
 def test_a_scenario_after_the_preload_loads_no_kernel(tmp_path: Path) -> None:
     catalog = tmp_path / "c.toml"
     catalog.write_text(CATALOG)
-    script = SCRIPT.format(preload=list(PRELOAD), catalog=str(catalog), out=str(tmp_path / "o"))
+    script = SCRIPT.format(catalog=str(catalog), out=str(tmp_path / "o"))
     res = subprocess.run([sys.executable, "-c", textwrap.dedent(script)], cwd=ROOT,
                          capture_output=True, text=True, timeout=300, check=False)
     assert res.returncode == 0, res.stderr[-3000:]
@@ -110,4 +111,4 @@ def test_scenario_processes_inherit_a_frozen_preload() -> None:
     proc.join(60)
     assert proc.exitcode == 0
     assert frozen > 50_000, f"only {frozen} objects frozen"
-    assert enabled  # paused during the preload (suite.exec.gc_pause), resumed after
+    assert enabled  # paused while prepare_process() imported, resumed after

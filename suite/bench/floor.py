@@ -7,9 +7,9 @@ Measured in one fresh interpreter (:func:`floor_study` runs
 * ``third_party_import_s``: importing the third-party modules the scenario processes need
   (numpy, numba, libsumo, Rerun, pyarrow's parquet, the parts of scipy used, sumolib)
   before anything else: what no change to this project's code removes;
-* then the scenario processes' preload (:data:`suite.exec.forkserver.PRELOAD`, frozen as
-  the forkserver freezes it; ``preload_s``, after the third-party imports) and each run
-  of the catalog in a child forked from it, with three timers: ``loop_s``
+* then the scenario processes' preload (:func:`suite.exec.prepare.prepare_process`, the
+  collector frozen as in the forkserver; ``preload_s``, after the third-party imports)
+  and each run of the catalog in a child forked from it, with three timers: ``loop_s``
   (:func:`suite.run.loop.run_loop`), ``kernel_s`` (inside the C/GMRES continuation
   kernel calls, ``CgmresOuter._continue``) and ``sumo_s`` (SUMO's own step with its
   collision query, ``SumoWorld._advance``), and ``run_s`` (the whole

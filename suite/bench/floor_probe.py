@@ -11,7 +11,8 @@ row per scenario: ``run_s``, ``loop_s``, ``kernel_s``, ``sumo_s``, ``scenario``,
 It is run as a file, not with ``python -m``: ``-m`` would import ``suite`` and
 ``suite.bench`` (and numpy with them) before the third-party imports are timed. So this
 module imports nothing but the standard library at its top; the third-party modules,
-then the scenario processes' preload, are imported inside :func:`main`, timed.
+then the scenario processes' preparation (:func:`suite.exec.prepare.prepare_process`),
+are done inside :func:`main`, timed.
 
 The three timers wrap, for the probe's process only, the calls they time
 (:func:`install_timers`): the C/GMRES continuation kernel
@@ -21,7 +22,6 @@ The three timers wrap, for the probe's process only, the calls they time
 
 from __future__ import annotations
 
-import gc
 import importlib
 import json
 import os
@@ -103,11 +103,9 @@ def main(catalog: str, out: str) -> dict[str, Any]:
         importlib.import_module(name)
     third_party_s = time.perf_counter() - t0
     t0 = time.perf_counter()
-    from suite.exec.forkserver import PRELOAD
+    from suite.exec.prepare import prepare_process
 
-    for name in PRELOAD:
-        importlib.import_module(name)
-    gc.freeze()
+    prepare_process()  # what the forkserver's preload does, collector frozen included
     preload_s = time.perf_counter() - t0
     from pathlib import Path
 

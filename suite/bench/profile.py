@@ -85,15 +85,11 @@ def format_shares(shares: Shares, top: int) -> str:
 
 
 def run_dense(out: Path, seeds: int) -> None:
-    """The dense target's runs, in this process, after the forkserver's preload."""
-    import gc
-    import importlib
+    """The dense target's runs, in this process, prepared as the forkserver is
+    (:func:`suite.exec.prepare.prepare_process`)."""
+    from suite.exec.prepare import prepare_process
 
-    from suite.exec.forkserver import PRELOAD
-
-    for name in PRELOAD:
-        importlib.import_module(name)
-    gc.freeze()
+    prepare_process()
     from suite.bench.catalogs import dense_catalog
     from suite.catalog import load_catalog
     from suite.run.options import RunOptions

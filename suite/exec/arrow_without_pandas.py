@@ -1,19 +1,21 @@
-"""A module of the forkserver's preload (:data:`suite.exec.forkserver.PRELOAD`): it lets
-pyarrow settle whether pandas is there without importing pandas, so that scenario
-processes never import it (0.25-0.3 s of a preload every catalog waits for; nothing in a
-run uses pandas: the run's files go to pyarrow directly, the reports read them in the
-parent).
+""":func:`settle_pyarrow_without_pandas`: pyarrow settles whether pandas is there without
+importing pandas, so that scenario processes never import it (0.25-0.3 s of a preload
+every catalog waits for; nothing in a run uses pandas: the run's files go to pyarrow
+directly, the reports read them in the parent). Called by
+:func:`suite.exec.prepare.prepare_process` in the process scenario processes are forked
+from; importing this module does nothing.
 
 Why it is needed: pyarrow imports pandas, when it is installed, the first time
 ``pa.array`` is given a numpy array (its check whether the array is a pandas object),
-and Rerun's logging makes that call. Importing this module makes that first call with
-the import of pandas refused (an :class:`ImportError`, which pyarrow catches), so later
-numpy conversions go straight on. A Python object (``pa.scalar``, ``pa.array`` of a list)
-still tries ``import pandas`` every time until it succeeds: what scenario processes log
-goes as numpy arrays (``suite.rerun.log._text``), and ``tests/test_warmup_coverage.py``
-fails if a run imports pandas. Nothing is lost: code in the same process that imports pandas
-itself afterwards (a user's plugin, say) still converts both ways
-(``Table.to_pandas``, ``pa.array`` of a Series; ``tests/test_arrow_without_pandas.py``).
+and Rerun's logging makes that call. :func:`settle_pyarrow_without_pandas` makes that
+first call with the import of pandas refused (an :class:`ImportError`, which pyarrow
+catches), so later numpy conversions go straight on. A Python object (``pa.scalar``,
+``pa.array`` of a list) still tries ``import pandas`` every time until it succeeds: what
+scenario processes log goes as numpy arrays (``suite.rerun.log._text``), and
+``tests/test_warmup_coverage.py`` fails if a run imports pandas. Nothing is lost: code in
+the same process that imports pandas itself afterwards (a user's plugin, say) still
+converts both ways (``Table.to_pandas``, ``pa.array`` of a Series;
+``tests/test_arrow_without_pandas.py``).
 """
 
 from __future__ import annotations
@@ -52,6 +54,3 @@ def settle_pyarrow_without_pandas() -> None:
         pa.array(np.zeros(1))
     finally:
         sys.meta_path.remove(finder)
-
-
-settle_pyarrow_without_pandas()

@@ -2,10 +2,15 @@
 
 Light on purpose (multiprocessing and threading only): ``hwyeval run`` imports it and
 calls :func:`prestart_forkserver` before anything heavy, so that the forkserver's
-preload (:data:`PRELOAD`: imports and numba kernels, :mod:`suite.exec.warmup`) runs in
-its own process while the command itself imports, validates the catalog and prepares the
-output; the :class:`suite.exec.local.LocalExecutor` then waits for that warm-up instead
-of starting its own (both go through :func:`warm_up`).
+preload runs in its own process while the command itself imports, validates the catalog
+and prepares the output; the :class:`suite.exec.local.LocalExecutor` then waits for that
+warm-up instead of starting its own (both go through :func:`warm_up`).
+
+The preload (:data:`PRELOAD`) is one module, :mod:`suite.exec.forkserver_preload`, which
+calls :func:`suite.exec.prepare.prepare_process` (imports, pyarrow without pandas, numba
+kernels, the collector frozen: its docstring says what and why, in order). The
+forkserver takes module names to import, not a function to call: that module is the only
+one with an effect at import.
 """
 
 from __future__ import annotations
@@ -19,8 +24,8 @@ from typing import Any
 __all__ = ["PRELOAD", "prestart_forkserver", "start_and_wait", "stop_forkserver",
            "wait_for_warm_ups", "warm_up"]
 
-PRELOAD = ["suite.exec.gc_pause", "suite.exec.arrow_without_pandas", "numba", "libsumo",
-           "suite.run.runner", "suite.catalog", "controllers.builtin", "suite.exec.warmup"]
+# the forkserver's preload: the one module whose import calls prepare_process()
+PRELOAD = ["suite.exec.forkserver_preload"]
 
 _prestarted: dict[str, threading.Thread] = {}  # start method -> the warm-up thread
 

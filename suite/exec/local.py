@@ -1,8 +1,9 @@
 """The local executor: up to ``jobs`` scenario processes at once on this machine.
 
 One scenario per process (libsumo hosts one simulation per process), started by a
-``forkserver`` with the heavy modules preloaded (:data:`suite.exec.forkserver.PRELOAD`),
-so a catalog pays imports and numba cache loading once. The forkserver is started (and its preload
+``forkserver`` with the heavy modules preloaded (:data:`suite.exec.forkserver.PRELOAD`:
+:func:`suite.exec.prepare.prepare_process`), so a catalog pays imports and numba cache
+loading once. The forkserver is started (and its preload
 awaited) before the first scenario, in a thread, so that the parent stays responsive
 to signals and no scenario's budget is spent on the warm-up;
 :func:`suite.exec.forkserver.prestart_forkserver` starts it earlier still, while the

@@ -36,7 +36,9 @@ SCENARIO_CPUS_ENV = "HWYEVAL_SCENARIO_CPUS"
 
 def become_worker() -> None:
     """Set up this scenario process (module doc). Call first thing in the worker."""
-    gc.enable()  # whatever became of the preload (suite.exec.gc_pause pauses it there)
+    # prepare_process() resumes the collector in the process we were forked from; enabled
+    # again here whatever that process did with it
+    gc.enable()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     for sig in (signal.SIGTTOU, signal.SIGTTIN, signal.SIGTSTP):

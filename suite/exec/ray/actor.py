@@ -1,10 +1,10 @@
 """The long-lived Ray worker: one actor runs one scenario at a time, each in a forked
 child, as the local executor's forkserver does.
 
-At its start the actor imports what a run needs and loads the numba kernels
-(:data:`suite.exec.forkserver.PRELOAD`, the forkserver's own preload), then freezes
-the garbage collector's view of it: every scenario it runs afterwards is a ``fork`` of
-a warm process, not an interpreter start. A run goes through a one-job
+At its start the actor imports what a run needs, loads the numba kernels and freezes
+the garbage collector's view of them (:func:`suite.exec.prepare.prepare_process`, what
+the forkserver's preload does): every scenario it runs afterwards is a ``fork`` of a
+warm process, not an interpreter start. A run goes through a one-job
 :class:`~suite.exec.local.LocalExecutor` with the ``fork`` start method, so it is a
 child process of the actor: libsumo hosts one simulation per process, the wall-clock
 backstop kills a run hung beyond its budget (a step stuck in C holds the GIL: no thread
@@ -19,8 +19,6 @@ as an archive (:mod:`suite.exec.ray.archive`) with the driver's paths put back.
 
 from __future__ import annotations
 
-import gc
-import importlib
 import os
 import shutil
 import socket
@@ -32,9 +30,9 @@ from pathlib import Path
 from typing import Any
 
 from reports.record import RUN_JSON
-from suite.exec.forkserver import PRELOAD
 from suite.exec.jobs import RunJob, write_failure
 from suite.exec.local import LocalExecutor
+from suite.exec.prepare import prepare_process
 from suite.exec.ray.archive import pack_run
 from suite.exec.shipping import ShippedFile, localise, restore_paths
 
@@ -42,12 +40,10 @@ __all__ = ["ScenarioActor", "preload"]
 
 
 def preload() -> float:
-    """Import :data:`PRELOAD` (kernels loaded by :mod:`suite.exec.warmup`) and freeze
-    the collector's view of it; returns the time it took [s]."""
+    """Prepare this process as the forkserver is (:func:`prepare_process`: imports,
+    kernels, the collector's view of them frozen); returns the time it took [s]."""
     t0 = time.monotonic()
-    for name in PRELOAD:
-        importlib.import_module(name)
-    gc.freeze()
+    prepare_process()
     return time.monotonic() - t0
 
 
