@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -36,7 +37,8 @@ controller = "crash_at_step_50"
     out = tmp_path / "out"
     proc = subprocess.run(
         [sys.executable, "-m", "suite", "run", str(catalog), "--out", str(out), "--executor",
-         "ray", "--no-log", "--plugin", str(ROOT / "tests" / "crash_plugin.py")], cwd=ROOT,
+         "ray", "--no-log", "--jobs", "1", "--plugin", str(ROOT / "tests" / "crash_plugin.py")],
+        cwd=ROOT,
         capture_output=True, text=True, timeout=600)
     assert proc.returncode == 1, proc.stdout + proc.stderr
     res = pd.read_csv(out / "results.csv").set_index("scenario")
@@ -45,3 +47,5 @@ controller = "crash_at_step_50"
     assert res.loc["ray_crash", "status"] == "error"
     assert (out / "ray_free" / "trace.parquet").is_file()  # shipped back as an archive
     assert "deliberate crash at step 50" in (out / "ray_crash" / "traceback.txt").read_text()
+    # the manifest (and the first line) count the actors started, not the scenarios
+    assert json.loads((out / "manifest.json").read_text())["jobs"] == 1

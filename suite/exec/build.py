@@ -138,9 +138,12 @@ def make_executor(settings: RunSettings, n_jobs: int) -> tuple[Executor, int]:
 
     if settings.executor == "ray":
         try:
-            return RayExecutor(address=settings.ray_address, jobs=settings.jobs or None), n_jobs
+            ray_executor = RayExecutor(address=settings.ray_address, jobs=settings.jobs or None)
         except (RuntimeError, ConnectionError, ValueError) as exc:
             raise UsageError(f"--executor ray: {exc}") from exc
+        # the actors the cluster holds now, not the scenario count (the pool is planned
+        # again when the run starts: a node that joins meanwhile is used)
+        return ray_executor, max(1, ray_executor.planned_actors(n_jobs))
     if settings.ray_address:
         raise UsageError(f"--ray-address {settings.ray_address}: only with --executor ray")
     workers = max(1, min(settings.jobs or os.cpu_count() or 1, n_jobs))

@@ -182,9 +182,20 @@ class RayExecutor:
                 self.ray.shutdown()
         return results
 
+    def _plan(self, n_jobs: int) -> list[str]:
+        """The node of each actor a run of ``n_jobs`` scenarios starts, on the cluster as
+        it is now (:func:`plan_pool`: at most ``jobs``, at most one per
+        ``num_cpus_per_task`` CPUs of each alive node)."""
+        want = min(n_jobs, self.jobs) if self.jobs else n_jobs
+        return plan_pool(alive_nodes(self.ray.nodes()), want, self.cpus)
+
+    def planned_actors(self, n_jobs: int) -> int:
+        """How many actors (scenarios at once) a run of ``n_jobs`` scenarios starts on
+        the cluster as it is now."""
+        return len(self._plan(n_jobs))
+
     def _pool(self, n: int) -> ActorPool:
-        want = min(n, self.jobs) if self.jobs else n
-        plan = plan_pool(alive_nodes(self.ray.nodes()), want, self.cpus)
+        plan = self._plan(n)
         from suite import __version__
         from suite.run.code_identity import hwyeval_code_sha256
 
