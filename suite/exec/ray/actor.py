@@ -36,7 +36,7 @@ from suite.exec.prepare import prepare_process
 from suite.exec.ray.archive import pack_run
 from suite.exec.shipping import ShippedFile, localise, restore_paths
 
-__all__ = ["ScenarioActor", "preload"]
+__all__ = ["HOME_PREFIX", "ScenarioActor", "preload", "remove_stale_homes"]
 
 
 def preload() -> float:
@@ -47,11 +47,38 @@ def preload() -> float:
     return time.monotonic() - t0
 
 
+HOME_PREFIX = "hwyeval-ray-"  # an actor's folder: <tmp>/hwyeval-ray-<pid>-<random>
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process: alive
+        return True
+    return True
+
+
+def remove_stale_homes(tmp: Path) -> list[Path]:
+    """Remove the folders of actors that ended without :meth:`ScenarioActor.close`
+    (killed with their node, or by ``ray.kill``): ``<tmp>/hwyeval-ray-<pid>-*`` whose
+    process is gone. Returns what was removed."""
+    removed = []
+    for home in tmp.glob(f"{HOME_PREFIX}*-*"):
+        pid_text = home.name[len(HOME_PREFIX):].split("-", 1)[0]
+        if pid_text.isdigit() and home.is_dir() and not _alive(int(pid_text)):
+            shutil.rmtree(home, ignore_errors=True)
+            removed.append(home)
+    return removed
+
+
 class ScenarioActor:
     """A Ray actor's class (the executor applies ``ray.remote``): module doc."""
 
     def __init__(self) -> None:
-        self.home = Path(tempfile.mkdtemp(prefix="hwyeval-ray-"))
+        remove_stale_homes(Path(tempfile.gettempdir()))
+        self.home = Path(tempfile.mkdtemp(prefix=f"{HOME_PREFIX}{os.getpid()}-"))
         self.store = self.home / "files"
         self.preload_s = preload()
         self.runs = 0
