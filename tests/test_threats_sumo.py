@@ -15,7 +15,9 @@ import numpy as np
 import pandas as pd
 import pytest
 from catalog_runs import run_catalog
+from scipy.signal import savgol_filter
 
+from controllers.behaviour.following import FollowParams
 from controllers.plant.vehicle_model import VehicleParams
 from controllers.two_loop.fallback import FallbackParams
 from controllers.two_loop.steer_rate import SteerRateLimiter
@@ -71,6 +73,22 @@ pos_m = 64.0
 speed_mps = 0.89
 events = [ { t_s = 2.0, speed_mps = 0.0, accel_mps2 = 1.0 },
            { t_s = 14.0, speed_mps = 1.5, accel_mps2 = 0.5 } ]
+
+# stop-and-go at a crawl: a lead 9.5 m ahead at the ego's 0.9 m/s set speed stops at
+# 2 s, stands for 28 s (long enough for the follow law's 3 s gap closing to settle) and
+# drives off at 30 s
+[[scenario]]
+name = "crawl_stop_and_go"
+net = "straight_2lane"
+duration_s = 45.0
+ego = { lane = 0, pos_m = 50.0, speed_mps = 0.9, target_speed_mps = 0.9 }
+[[scenario.actors]]
+id = "lead"
+lane = 0
+pos_m = 64.0
+speed_mps = 0.9
+events = [ { t_s = 2.0, speed_mps = 0.0, accel_mps2 = 1.0 },
+           { t_s = 30.0, speed_mps = 1.5, accel_mps2 = 0.5 } ]
 
 # a recorded car beside the ego at its speed, in the left lane 0.2 m from the line
 [[scenario]]
@@ -190,6 +208,46 @@ def test_a_stopped_lead_is_followed_at_a_crawling_set_speed(runs: Path) -> None:
     assert reasons == {"follow"}, reasons
     gap, _ = _gap_and_closing(runs / "crawl_stop", "actor_lead")
     assert np.nanmin(gap) > 1.0
+
+
+def test_a_lead_stopping_at_a_crawl_is_followed_to_the_follow_gap_and_off_again(
+        runs: Path) -> None:
+    """Stop-and-go at 0.9 m/s set speed (issue #33). The ego used to stop 11 m behind the
+    lead, held there by the ellipse's log barrier (its push on the plan, about Cz/Delta s
+    per metre whatever the speed, was the whole of a 0.9 m/s crawl), planning -0.22 m/s
+    while it stood, and crawled at 0.5 m/s after the lead had gone. Now: it follows the
+    lead to a standstill at the follow law's gap (FollowParams.standstill_m = 6 m, bumper
+    to bumper, within 0.75 m: it stands at 6.6 m, measured), never plans a negative
+    speed, stays within nuPlan's comfort
+    limits, and follows the lead again when it drives off."""
+    run_dir = runs / "crawl_stop_and_go"
+    record = load_run(run_dir)
+    assert record.verdict.value("collision") == 0.0
+    tr = pd.read_parquet(run_dir / "trace.parquet")
+    nb = pd.read_parquet(run_dir / "neighbours.parquet")
+    lead = nb[nb["id"] == "actor_lead"].set_index("step")["speed_mps"].reindex(
+        tr["step"]).to_numpy()
+    t = tr["t_s"].to_numpy()
+    v = tr["speed_mps"].to_numpy()
+    gap, _ = _gap_and_closing(run_dir, "actor_lead")
+    # no planned speed below 0 at any step, at any stage of the plan (the penalty
+    # Cvn min(V, 0)² is one-sided and soft: it leaves -0.1 mm/s at most, measured)
+    assert tr["planned_speed_min_mps"].min() >= -1e-3
+    # the stop: at the follow law's standstill gap, standing, the lead followed
+    standing = (t > 28.0) & (t < 30.0)
+    assert np.all(v[standing] < 0.05)
+    assert np.all(np.abs(gap[standing] - FollowParams().standstill_m) < 0.75), gap[standing]
+    assert set(tr["reason_code"].to_numpy()[(lead < 0.05) & (t > 4.0) & (t < 30.0)]) \
+        == {"follow"}
+    # and off again behind it: moving within 2 s of the lead, at the set speed by the end
+    assert v[np.argmax(t > 32.0)] > 0.3
+    assert np.all(v[t > 40.0] > 0.8)
+    assert np.nanmin(gap) > 5.0
+    # comfort (nuPlan): acceleration and Savitzky-Golay jerk
+    acc = tr["long_acc_mps2"].to_numpy()
+    assert -4.05 <= acc.min() and acc.max() <= 2.40
+    jerk = savgol_filter(acc, 25, 2, deriv=1, delta=DT)
+    assert np.max(np.abs(jerk)) <= 4.13
 
 
 def test_a_neighbour_jittering_beside_the_line_is_not_a_cut_in(runs: Path) -> None:

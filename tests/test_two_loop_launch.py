@@ -57,13 +57,6 @@ def _stop_then_pass(reference: np.ndarray, duration: float = 50.0,
                      set_speed_mps=22.0)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "on production's decisions the ego stops behind the car (FOLLOW), launches when the "
-    "left lane frees up and pulls out, but then crawls at 0.1 m/s with the launch "
-    "re-engaged, 3 m to the left of the stalled car and 1.1 m from it (s = 147 m of "
-    "150 m) although the speed target is 22 m/s: the former scripted decision (the raw "
-    "3.5 m reference at once, the car's ellipse widened by 1.5 lanes) never met this. "
-    "For the controller's owner (launch clearance against the passed car's ellipse)."))
 @pytest.mark.parametrize("curve", [False, True], ids=["straight", "curve"])
 def test_stop_behind_stalled_car_then_launch_and_pass(curve: bool) -> None:
     run = _stop_then_pass(CURVE if curve else STRAIGHT)

@@ -75,6 +75,7 @@ IntpArray = npt.NDArray[np.intp]
 
 
 _LANE_CHANGE_RATE_MPS = 1.2  # lateral speed of a change, for "can the ego clear it in time"
+_BESIDE_MARGIN_M = 0.3  # lateral room between the boxes of a car the ego is beside [m]
 
 
 @dataclass
@@ -463,7 +464,13 @@ class LaneBehaviour:
         start, goal = sc.offset_m(plan.origin), sc.offset_m(plan.lane)
         width = sc.lanes[plan.origin].width_m if plan.origin in sc.lanes else self.lane_width_m
         clear_at = 0.5 * (width + self.ego.width_m)
-        left = max(clear_at - abs(sc.ego.lat_m - start), 0.0)
+        # Clear once out of the origin lane, or beside the lead's box with a margin (a
+        # stopped car in the lane's middle leaves the lane's edge 0.5 m further out).
+        beside = abs(float(sc.fn.y_m[lead.index]) - start) + 0.5 * (
+            float(sc.fn.width_m[lead.index]) + self.ego.width_m) + _BESIDE_MARGIN_M
+        left = max(min(clear_at, beside) - abs(sc.ego.lat_m - start), 0.0)
+        if left <= 0.0:
+            return True  # clear already (t_reach > 0 below never holds beside it)
         t_lateral = left / _LANE_CHANGE_RATE_MPS
         closing = sc.ego.speed_mps - lead.speed_mps
         if closing <= 0.1:

@@ -309,6 +309,7 @@ class TwoLoopController:
             steer_outer_rad=out.steer_outer_rad, steer_corr_rad=out.steer_corr_rad,
             torque_outer_nm=out.torque_outer_nm, torque_corr_nm=out.torque_corr_nm,
             planned_speed_mps=float(speeds[0]) if speeds.size else 0.0,
+            planned_speed_min_mps=float(np.min(speeds)) if speeds.size else 0.0,
             preview_err_t_m=out.preview_err_t_m, preview_err_n_m=out.preview_err_n_m,
             outer_updates=updates, lateral_ref_m=y_ref,
             lateral_ref_rate_mps=self.lateral.rate_mps, lateral_weight=c_y,

@@ -16,7 +16,8 @@ class TwoLoopDiagnostics(StepDiagnostics):
 
     steer_outer_rad, torque_outer_nm: conversion (13)(14) with feed-forward [rad, N m];
     steer_corr_rad, torque_corr_nm: preview corrections (38)(39) [rad, N m];
-    planned_speed_mps: the plan's V at stage 0 [m/s];
+    planned_speed_mps: the plan's V at stage 0 [m/s]; planned_speed_min_mps: the least V
+        over the plan's stages [m/s];
     preview_err_t_m, preview_err_n_m: preview error PE along the path's tangent and
         normal [m] (0 in launch mode);
     outer_updates: planner updates this period (0 in launch mode) [-];
@@ -48,6 +49,7 @@ class TwoLoopDiagnostics(StepDiagnostics):
     torque_outer_nm: float = math.nan
     torque_corr_nm: float = math.nan
     planned_speed_mps: float = math.nan
+    planned_speed_min_mps: float = math.nan
     preview_err_t_m: float = math.nan
     preview_err_n_m: float = math.nan
     outer_updates: int = 0

@@ -58,7 +58,7 @@ class LaunchParams:
     max_speed_mps: float = param(3.0, "m/s", "speed cap until the hand-over")
     k_heading: float = param(1.0, "rad/rad", "pure-pursuit heading gain")
     lookahead_m: float = param(6.0, "m", "pure-pursuit look-ahead distance")
-    max_heading_rad: float = param(0.35, "rad", "largest heading offset toward the target")
+    max_heading_rad: float = param(0.5, "rad", "largest heading offset toward the target")
     steer_speed_mps: float = param(1.0, "m/s", "steering fades in up to this speed")
     clearance_m: float = param(0.3, "m", "growth of the box-sum rectangle")
     guard_decel_mps2: float = param(1.0, "m/s²", "speed cap sqrt(2 a (d - clearance))")
@@ -242,6 +242,14 @@ class LaunchSupervisor:
         h = min(max(h, -p.max_heading_rad), p.max_heading_rad)
         free_m = box_free_distance_m(float(x0[0]), float(x0[1]), h, obstacles, pass_side,
                                      self.policy, p.clearance_m)
+        # Where the car is heading now, too: the ray along h may already miss the box while
+        # the car, still turning toward h, drives at it.
+        meta, coef, _ = self._path.tables()
+        g, kappa, _ = path_gamma(meta, coef, float(x0[0]))
+        heading = (float(x0[2]) - g + math.pi) % (2.0 * math.pi) - math.pi
+        free_m = min(free_m, box_free_distance_m(float(x0[0]), float(x0[1]), heading,
+                                                 obstacles, pass_side, self.policy,
+                                                 p.clearance_m))
         if abs(yt - float(x0[1])) <= _ON_LANE_M:  # not pulling out: the OCP's ellipses too
             free_m = min(free_m, free_distance_m(float(x0[0]), float(x0[1]), obstacles))
         set_point = target_mps if math.isfinite(target_mps) else 0.0
@@ -257,8 +265,6 @@ class LaunchSupervisor:
         torque = m_r * ar + p.k_pv * (vr - speed_mps)
         if set_point == 0.0 and vr <= 0.0 and speed_mps < p.engage_speed_mps:
             torque = min(torque, -m_r * p.hold_decel_mps2)  # hold the brakes
-        meta, coef, _ = self._path.tables()
-        g, kappa, _ = path_gamma(meta, coef, float(x0[0]))
         e_psi = (g + h - float(state[2]) + math.pi) % (2.0 * math.pi) - math.pi
         steer = self._vehicle.steady_state_steer_rad(speed_mps, kappa) + p.k_heading * e_psi
         steer *= min(speed_mps / p.steer_speed_mps, 1.0)

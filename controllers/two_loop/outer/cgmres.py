@@ -67,8 +67,11 @@ from controllers.two_loop.outer.ocp import (
 from controllers.two_loop.outer.ocp_layout import (
     _P_CY,
     _P_CYR,
+    _P_CZS,
+    _P_CZSR,
     _P_YREF,
     _P_YREFD,
+    barrier_scale,
     obstacle_table,
     pack_params,
     stage_fractions,
@@ -120,6 +123,7 @@ class CgmresOuter(CruiseSetPoint):
                                      params.target_jerk_mps3, params.set_speed_decel_mps2)
         self._yr = 0.0  # lateral reference at the previous update [m]
         self._cy = params.c_y  # Cy at the previous update
+        self._czs = 1.0  # the barrier's speed scale sigma at the previous update
         self._fallback_until = -math.inf
         self._diverging_since = math.inf  # when E first exceeded diverging_residual [s]
         self._fallback_v0 = 0.0
@@ -132,9 +136,20 @@ class CgmresOuter(CruiseSetPoint):
                        self.coef)
 
     def _pack(self, target_speed_mps: float, lateral_reference_m: float = 0.0,
-              lateral_weight: float | None = None) -> np.ndarray:
+              lateral_weight: float | None = None,
+              barrier_weight_scale: float | None = None) -> np.ndarray:
         return pack_params(self.params, target_speed_mps, lateral_reference_m,
-                           lateral_weight=lateral_weight, row_scaling=self.params.row_scaling)
+                           lateral_weight=lateral_weight, row_scaling=self.params.row_scaling,
+                           barrier_weight_scale=barrier_weight_scale)
+
+    def _barrier_scale(self) -> float:
+        """sigma of this update (:func:`barrier_scale`): from the larger of the OCP's target
+        speed and the speed the current plan starts at (braking from speed toward a low
+        target keeps the barrier the speed it is still driving at calls for)."""
+        v = self._vt
+        if self._initialised:
+            v = max(v, self._v_estimate())
+        return barrier_scale(self.params, v)
 
     def _load_kernels(self) -> None:
         # Load every compiled kernel now (from numba's cache, or compile once), so
@@ -173,6 +188,7 @@ class CgmresOuter(CruiseSetPoint):
         self._ramp.cruise_speed_mps = math.inf
         self._yr = 0.0
         self._cy = self.params.c_y
+        self._czs = barrier_scale(self.params, self._vt)
         self._slots.clear()
         self._fallback_until = -math.inf
         self._diverging_since = math.inf
@@ -224,7 +240,8 @@ class CgmresOuter(CruiseSetPoint):
     def _initialise(self, t_s: float, x0: np.ndarray) -> None:
         self._diverging_since = math.inf
         self._hz[0] = t_s
-        prm = self._pack(self._vt, self._yr, lateral_weight=self._cy)
+        prm = self._pack(self._vt, self._yr, lateral_weight=self._cy,
+                         barrier_weight_scale=self._czs)
         stage_init(x0, 0.0, prm, self._slots.table, self.meta, self.coef, self.params.n_stages,
                    self._u)
         self._udot[:] = 0.0
@@ -255,7 +272,8 @@ class CgmresOuter(CruiseSetPoint):
         # Jerk-limited target speed (the paper ramps Vtarget).
         if self._initialised:
             self._vt = self._ramp.update(float(target_speed_mps), max(t_s - self._t_prev, 0.0))
-        prm = self._pack(self._vt, yr, lateral_weight=cy)
+        czs = self._barrier_scale()
+        prm = self._pack(self._vt, yr, lateral_weight=cy, barrier_weight_scale=czs)
         horizon_prev = self.horizon_now(self._t_prev) if self._initialised else 0.0
         self._slots.update(t_s, obstacles, self._u, self._xs, horizon_prev, prm,
                            self._initialised)
@@ -264,11 +282,12 @@ class CgmresOuter(CruiseSetPoint):
         if not self._initialised:
             self._yr = yr
             self._cy = cy
+            self._czs = czs
             self._initialise(t_s, x0)
             self._stats[:] = 0.0
             self._final_residual(t_s, x0, prm)
         else:
-            guards = self._continue(t_s, x0, dt_s, yr, cy, prm)
+            guards = self._continue(t_s, x0, dt_s, yr, cy, czs, prm)
             e = float(self._stats[0])
             fallback = self._failed(t_s, e)
         self.guard_total += guards
@@ -276,6 +295,7 @@ class CgmresOuter(CruiseSetPoint):
         self._x_prev = x0
         self._yr = yr
         self._cy = cy
+        self._czs = czs
         if fallback:
             self.fallback_count += 1
             self._fallback_until = t_s + p.fallback_hold_s
@@ -292,10 +312,11 @@ class CgmresOuter(CruiseSetPoint):
         plan.solve_s = time.perf_counter() - t_start
         return plan
 
-    def _continue(self, t_s: float, x0: np.ndarray, dt_s: float, yr: float, cy: float,
-                  prm: np.ndarray) -> int:
+    def _continue(self, t_s: float, x0: np.ndarray, dt_s: float, yr: float, cy: float,  # noqa: PLR0913
+                  czs: float, prm: np.ndarray) -> int:
         """``sub_updates`` continuation updates from the previous update to (t_s, x0);
-        yr and Cy move linearly from their previous values. Returns the guard count."""
+        yr, Cy and the barrier's scale sigma move linearly from their previous values.
+        Returns the guard count."""
         p = self.params
         dt = t_s - self._t_prev
         if not dt > 0:
@@ -305,6 +326,8 @@ class CgmresOuter(CruiseSetPoint):
         prm[_P_YREFD] = (yr - self._yr) / dt
         prm[_P_CY] = self._cy
         prm[_P_CYR] = (cy - self._cy) / dt
+        prm[_P_CZS] = self._czs
+        prm[_P_CZSR] = (czs - self._czs) / dt
         guards = 0
         ocp = self._ocp_data(prm)
         if self.time_each_subupdate:
@@ -315,6 +338,7 @@ class CgmresOuter(CruiseSetPoint):
                 xb = self._x_prev + (k + 1) / n_sub * (x0 - self._x_prev)
                 prm[_P_YREF] = self._yr + prm[_P_YREFD] * k * ddt
                 prm[_P_CY] = self._cy + prm[_P_CYR] * k * ddt
+                prm[_P_CZS] = self._czs + prm[_P_CZSR] * k * ddt
                 iv = Interval(xa, xb, self._t_prev + k * ddt, ddt, 1, self._hz,
                               self._t_prev + (k + 1) * ddt - t_s)
                 t0 = time.perf_counter()
@@ -330,6 +354,8 @@ class CgmresOuter(CruiseSetPoint):
         prm[_P_YREFD] = 0.0
         prm[_P_CY] = cy
         prm[_P_CYR] = 0.0
+        prm[_P_CZS] = czs
+        prm[_P_CZSR] = 0.0
         return guards
 
     # ------------------------------------------------------------------ helpers

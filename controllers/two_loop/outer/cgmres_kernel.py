@@ -9,9 +9,9 @@ rate (x0b - x0a) / dt_total, h the forward-difference step, T(t) the growing hor
                       A v = (F(U + h v, x_k + h x', t_k + h) - Fx) / h   (GMRES, MGS + Givens)
     U  <- U + dt U',   then the barrier guard Z_ij + zeta >= z_guard on active slots
 
-The lateral reference yr and the weight Cy move linearly across the call at the rates
-packed in prm (their motion enters F_t with the state's). Afterwards E = ||F(U, x0b,
-t_a + dt_total)||_inf on the unscaled residual.
+The lateral reference yr, the weight Cy and the barrier's speed scale sigma move linearly
+across the call at the rates packed in prm (their motion enters F_t with the state's).
+Afterwards E = ||F(U, x0b, t_a + dt_total)||_inf on the unscaled residual.
 
 Arguments are grouped (numba reads NamedTuples of arrays and scalars): :class:`Unknowns`
 (U, U', in place), :class:`Interval` (the states and times the call runs between),
@@ -31,7 +31,16 @@ import numpy as np
 
 from controllers.two_loop.outer.gmres import arnoldi_mgs, back_substitute, combine, givens_column
 from controllers.two_loop.outer.ocp import ocp_residual
-from controllers.two_loop.outer.ocp_layout import _FM, _P_CY, _P_CYR, _P_SCALE, _P_YREF, _P_YREFD
+from controllers.two_loop.outer.ocp_layout import (
+    _FM,
+    _P_CY,
+    _P_CYR,
+    _P_CZS,
+    _P_CZSR,
+    _P_SCALE,
+    _P_YREF,
+    _P_YREFD,
+)
 from controllers.two_loop.outer.params import CgmresParams
 
 __all__ = ["Buffers", "Interval", "OcpData", "SolverConfig", "Unknowns", "cgmres_updates",
@@ -61,7 +70,7 @@ class Interval(NamedTuple):
 
 
 class OcpData(NamedTuple):
-    """prm (N_PACKED,) packed parameters (yr, Cy and their rates at t_a; restored on
+    """prm (N_PACKED,) packed parameters (yr, Cy, sigma and their rates at t_a; restored on
     return); obs (K, OBS_COLS) the slot table; w (N+1,) stage fractions; meta, coef the
     path tables (``FrenetPath.tables()``)."""
 
@@ -111,6 +120,8 @@ class _Schedule(NamedTuple):
     yr_rate_mps: float
     cy: float
     cy_rate: float
+    czs: float
+    czs_rate: float
 
 
 def solver_config(params: CgmresParams) -> SolverConfig:
@@ -209,11 +220,14 @@ def _direction(unk: Unknowns, xk: np.ndarray, xh: np.ndarray, tk: float, tk_shif
     tt, tdot = _horizon(tk, hz[0], hz[1], hz[2])
     tth = tt + h * tdot
     cy_k = sched.cy + sched.cy_rate * dt_k
+    czs_k = sched.czs + sched.czs_rate * dt_k
     prm[_P_YREF] = yr_k
     prm[_P_CY] = cy_k
+    prm[_P_CZS] = czs_k
     _residual(unk.u, xk, tt, tk_shift, ocp, xs, sc.ps, sc.f0)
     prm[_P_YREF] = yr_k + h * sched.yr_rate_mps
     prm[_P_CY] = cy_k + h * sched.cy_rate
+    prm[_P_CZS] = czs_k + h * sched.czs_rate
     _residual(unk.u, xh, tth, tk_shift + h, ocp, xs, sc.ps, sc.fxh)
     for i in range(n):
         sc.ut[i] = unk.u[i] + h * unk.udot[i]
@@ -263,10 +277,12 @@ def _final_stats(unk: Unknowns, iv: Interval, ocp: OcpData, sched: _Schedule, sc
     prm[_P_SCALE] = 0.0
     prm[_P_YREF] = sched.yr_m + sched.yr_rate_mps * iv.dt_total_s
     prm[_P_CY] = sched.cy + sched.cy_rate * iv.dt_total_s
+    prm[_P_CZS] = sched.czs + sched.czs_rate * iv.dt_total_s
     _residual(unk.u, iv.x0b, tt, iv.tshift_b_s, ocp, out.xs_out, sc.ps, sc.f0)
     prm[_P_SCALE] = scale_flag
     prm[_P_YREF] = sched.yr_m
     prm[_P_CY] = sched.cy
+    prm[_P_CZS] = sched.czs
     e = 0.0
     finite = True
     for i in range(n):
@@ -294,7 +310,8 @@ def cgmres_updates(unk: Unknowns, iv: Interval, ocp: OcpData, cfg: SolverConfig,
     nst = ocp.w.shape[0] - 1
     sc = _scratch(out.work, n, nst, cfg.k_max)
     prm = ocp.prm
-    sched = _Schedule(prm[_P_YREF], prm[_P_YREFD], prm[_P_CY], prm[_P_CYR])
+    sched = _Schedule(prm[_P_YREF], prm[_P_YREFD], prm[_P_CY], prm[_P_CYR], prm[_P_CZS],
+                      prm[_P_CZSR])
     xd = np.empty(3)
     xk = np.empty(3)
     xh = np.empty(3)

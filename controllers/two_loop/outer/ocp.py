@@ -12,9 +12,18 @@ Models and costs (e = theta - gamma(s), D = 1 - y kappa(s)):
 * J3 (model (36)):     x = (s, y, theta), u = (V, omega, Z_1..Z_K)
 * f1 = V cos(e)/D, f2 = V sin(e)  (and theta' = omega for J3)
 
-    J1: L = Cy (y - yr)² + Ctheta e² + CV (V - Vt)² - Cz sum ln(Z_j + zeta)
-    J2: L = Cy (y - yr)² + Cyd f2² + Csd (f1 - Vt)² - Cz sum ln(Z_j + zeta)
+    J1: L = Cy (y - yr)² + Ctheta e² + CV (V - Vt)² - sigma Cz sum ln(Z_j + zeta) + P(V)
+    J2: L = Cy (y - yr)² + Cyd f2² + Csd (f1 - Vt)² - sigma Cz sum ln(Z_j + zeta) + P(V)
     J3: L = J2's L + Cthd omega²
+
+P(V) = Cvn min(V, 0)² keeps the planned speed from going negative (zero at V >= 0, so
+cruising is untouched). sigma in [barrier_min_scale, 1] scales the barrier with the
+problem's speed (packed, ``_P_CZS``; C/GMRES moves it across a control period at its
+packed rate, like Cy): the barrier pushes the plan with about sigma Cz T |dc/ds| / (2 Z
+(Z + zeta)) / (2 Csd) m/s whatever the speed, 0.6-1.1 m/s 11-15 m behind a car's
+ellipse at Cz = 30: nothing at 25 m/s, the whole of a 0.9 m/s crawl, which it stopped
+11 m short of the follow gap and planned backwards (docs/two_loop.md, "Barrier at low
+speed").
 
 yr: the lateral reference [m] (``Observation.lateral_reference_m``, smoothed by the
 two-loop controller): a per-update parameter, constant over the horizon, packed with
@@ -39,8 +48,9 @@ a1 = 2 Csd (f1 - Vt) + p_s, a2 = 2 Cyd f2 + p_y (J2/J3; for J1 a1 = p_s, a2 = p_
     H_y = 2 Cy (y - yr) + a1 V kappa cos e / D² + sum mu_j dc_j/dy
     H_theta = -a1 V sin e / D + a2 V cos e        (+ 2 Ctheta e for J1's input theta)
     H_V = a1 cos e / D + a2 sin e                 (+ 2 CV (V - Vt) for J1)
+          + 2 Cvn min(V, 0)
     H_omega = 2 Cthd omega + p_theta              (J3)
-    H_Zj = -Cz / (Z_j + zeta) - 2 mu_j Z_j,   H_muj = c_j - Z_j²
+    H_Zj = -sigma Cz / (Z_j + zeta) - 2 mu_j Z_j,   H_muj = c_j - Z_j²
 
 Costate: p_N = dm/dx(x_N), p_i = p_{i+1} + H_x(x_i, u_i, mu_i, p_{i+1}) dtau_i.
 Residual F(U) = [H_u(x_i, u_i, mu_i, p_{i+1}); c(x_i) - Z_i²]_{i=0..N-1} is exactly the
@@ -74,10 +84,12 @@ from controllers.two_loop.outer.ocp_layout import (
     _P_CTH,
     _P_CTHD,
     _P_CV,
+    _P_CVN,
     _P_CY,
     _P_CYD,
     _P_CYT,
     _P_CZ,
+    _P_CZS,
     _P_SCALE,
     _P_VT,
     _P_YREF,
@@ -208,6 +220,12 @@ def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,  # n
             hth = 0.0
             hu_out[0] = a1 * f1_th + a2 * f2_th
             hu_out[1] = a1 * f1_v + a2 * f2_v
+    # Cvn min(V, 0)²: zero (and no gradient) at every V >= 0.
+    vneg = min(v, 0.0)
+    if vneg < 0.0:
+        cvn = prm[_P_CVN]
+        hval += cvn * vneg * vneg
+        hu_out[0 if cost == 3 else 1] += 2.0 * cvn * vneg
     hval += ps * f1 + py * f2
     if cost == 3:
         hval += pth * om
@@ -252,7 +270,7 @@ def stage_eval(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float, with_con
     stage_geometry(x, u, prm, meta, coef, geo)
     czw = np.empty(obs.shape[0])
     for j in range(obs.shape[0]):
-        czw[j] = prm[_P_CZ] * slot_weight(obs[j], 0.0)
+        czw[j] = prm[_P_CZ] * prm[_P_CZS] * slot_weight(obs[j], 0.0)
     return stage_eval_geo(x, u, p, tau, with_constraints, prm, obs, czw, geo, f_out, hx_out,
                           hu_out)
 
@@ -305,7 +323,7 @@ def ocp_residual(uvec: np.ndarray, x0: np.ndarray, horizon: float, tshift: float
     hx = np.empty(3)
     czw = np.empty(k_obs)
     for j in range(k_obs):
-        czw[j] = prm[_P_CZ] * slot_weight(obs[j], tshift)
+        czw[j] = prm[_P_CZ] * prm[_P_CZS] * slot_weight(obs[j], tshift)
     scale = prm[_P_SCALE] > 0.5
     if cost == 3:
         inv0, inv1 = 0.5 / prm[_P_CSD], 0.5 / prm[_P_CTHD]
@@ -448,7 +466,7 @@ def stage_init(x0: np.ndarray, tshift: float, prm: np.ndarray, obs: np.ndarray,
         d1 = (-jac[1, 0] * r0[0] + jac[0, 0] * r0[1]) / det
         u[0] -= d0
         u[1] -= d1
-    cz = prm[_P_CZ]
+    cz = prm[_P_CZ] * prm[_P_CZS]
     zeta = prm[_P_ZETA]
     for i in range(n):
         b = i * m
@@ -473,7 +491,7 @@ def activate_slot(uvec: np.ndarray, xs: np.ndarray, horizon: float, tshift: floa
     n = w.shape[0] - 1
     k_obs = obs.shape[0]
     m = 2 + 2 * k_obs
-    cz = prm[_P_CZ]
+    cz = prm[_P_CZ] * prm[_P_CZS]
     zeta = prm[_P_ZETA]
     for i in range(n):
         b = i * m

@@ -9,19 +9,24 @@ vector (``pack_params``: (N_PACKED,), indices ``_P_*``), the obstacle slot table
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from controllers.two_loop.outer.params import OcpParams
 
-__all__ = ["N_PACKED", "OBS_COLS", "obstacle_row", "obstacle_table", "pack_params",
-           "stage_fractions", "stage_times", "stage_width"]
+__all__ = ["N_PACKED", "OBS_COLS", "barrier_scale", "obstacle_row", "obstacle_table",
+           "pack_params", "stage_fractions", "stage_times", "stage_width"]
 
 # Indices into the packed parameter vector.
 _P_COST, _P_CY, _P_CYD, _P_CSD, _P_CTHD, _P_CTH, _P_CV, _P_CZ, _P_ZETA = range(9)
 _P_CYT, _P_CET, _P_VT, _P_SCALE = 9, 10, 11, 12
 _P_YREF, _P_YREFD = 13, 14  # lateral reference yr [m] and its rate [m/s] (C/GMRES only)
 _P_CYR = 15  # rate of Cy [1/(m² s²)] when the caller schedules it (C/GMRES only)
-N_PACKED = 16
+# The barrier's speed scale sigma in [barrier_min_scale, 1] (Cz_eff = sigma Cz), its rate
+# [1/s] (C/GMRES only), and the weight Cvn of the penalty Cvn min(V, 0)² on negative speeds.
+_P_CZS, _P_CZSR, _P_CVN = 16, 17, 18
+N_PACKED = 19
 # Fast-math flags of the hot kernels: no 'nnan'/'ninf' (non-finite checks stay valid), and
 # no 'reassoc'/'contract': with them LLVM may reorder sums and fuse multiply-adds
 # differently when a kernel is compiled in the run's process than when it comes from
@@ -54,10 +59,21 @@ def stage_times(params: OcpParams, horizon_s: float | None = None) -> np.ndarray
     return stage_fractions(params) * (params.horizon_s if horizon_s is None else horizon_s)
 
 
-def pack_params(params: OcpParams, target_speed_mps: float,
+def barrier_scale(params: OcpParams, speed_scale_mps: float) -> float:
+    """sigma = clip(v / ``barrier_speed_mps``, ``barrier_min_scale``, 1) of the speed scale
+    v [m/s] of the problem (the larger of the target speed and the planned speed now):
+    the barrier's weight is sigma Cz (docs/two_loop.md, "Barrier at low speed")."""
+    v = float(speed_scale_mps)
+    if not math.isfinite(v):
+        return 1.0
+    return min(max(v / params.barrier_speed_mps, params.barrier_min_scale), 1.0)
+
+
+def pack_params(params: OcpParams, target_speed_mps: float,  # noqa: PLR0913
                 lateral_reference_m: float = 0.0, lateral_reference_rate_mps: float = 0.0,
                 lateral_weight: float | None = None, lateral_weight_rate: float = 0.0,
-                row_scaling: bool = False) -> np.ndarray:
+                row_scaling: bool = False, barrier_weight_scale: float | None = None,
+                barrier_weight_scale_rate: float = 0.0) -> np.ndarray:
     """Packed float vector (N_PACKED,) for the compiled kernels (per-update data included).
 
     target_speed_mps: Vt [m/s]; lateral_reference_m: yr [m] in Cy (y - yr)² and
@@ -65,7 +81,9 @@ def pack_params(params: OcpParams, target_speed_mps: float,
     a caller may schedule it); the rates yr' [m/s] and Cy' [1/(m² s²)] are used by
     :func:`controllers.two_loop.outer.cgmres.cgmres_updates` to move yr and Cy across a
     control period (ignored by the residual itself); row_scaling: the residual returns
-    D(U) F (a C/GMRES device, see :func:`ocp_residual`).
+    D(U) F (a C/GMRES device, see :func:`ocp_residual`); barrier_weight_scale: sigma of
+    the barrier weight sigma Cz (None: :func:`barrier_scale` of the target speed), its rate
+    [1/s] moved across a control period by C/GMRES like Cy's.
     """
     out = np.zeros(N_PACKED)
     out[_P_COST] = params.cost_id
@@ -84,6 +102,10 @@ def pack_params(params: OcpParams, target_speed_mps: float,
     out[_P_YREF] = lateral_reference_m
     out[_P_YREFD] = lateral_reference_rate_mps
     out[_P_CYR] = lateral_weight_rate
+    out[_P_CZS] = (barrier_scale(params, target_speed_mps) if barrier_weight_scale is None
+                   else barrier_weight_scale)
+    out[_P_CZSR] = barrier_weight_scale_rate
+    out[_P_CVN] = params.c_v_negative
     return out
 
 

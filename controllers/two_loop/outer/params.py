@@ -32,7 +32,9 @@ class OcpParams:
 
     Running costs (e = theta - gamma(s), f1 = ds/dt, f2 = dy/dt):
     J1 = Cy (y - yr)² + Ctheta e² + CV (V - Vt)², J2 = Cy (y - yr)² + Cyd f2² +
-    Csd (f1 - Vt)², J3 = J2 + Cthd omega², each minus Cz sum_j ln(Z_j + zeta).
+    Csd (f1 - Vt)², J3 = J2 + Cthd omega², each minus sigma Cz sum_j ln(Z_j + zeta) and
+    plus Cvn min(V, 0)². sigma = clip(v / barrier_speed_mps, barrier_min_scale, 1), v the
+    problem's speed scale (the larger of Vt and the planned speed now).
     Terminal: CyT (y_N - yr)² + CeT e_N² (CeT for J3 only).
 
     Target speed Vt: the set-point through the jerk-limited ramp
@@ -55,6 +57,12 @@ class OcpParams:
     c_v: float = param(1.0, "s/m²", "CV: speed error V - Vt (J1)")
     c_z: float = param(30.0, "1/s", "Cz: weight of the log barrier on the slacks")
     zeta: float = param(0.2, "-", "barrier offset: ln(Z + zeta)")
+    barrier_speed_mps: float = param(10.0, "m/s", "speed scale from which the barrier has "
+                                     "its full weight Cz (below: Cz v / barrier_speed_mps)")
+    barrier_min_scale: float = param(0.03, "-", "the barrier weight's least fraction of Cz "
+                                     "(at standstill)")
+    c_v_negative: float = param(300.0, "s/m²", "Cvn: penalty Cvn min(V, 0)² on a negative "
+                                "planned speed")
     c_y_terminal: float = param(0.0, "1/m²", "CyT: terminal lateral offset")
     c_e_terminal: float = param(2.0, "1/rad²", "CeT: terminal heading error (J3)")
     target_accel_mps2: float = param(1.5, "m/s²", "target-speed ramp: acceleration limit")
@@ -68,11 +76,13 @@ class OcpParams:
 
     def __post_init__(self) -> None:
         check_leaves(self)
-        for name in ("horizon_s", "c_z", "zeta", "target_accel_mps2", "target_decel_mps2",
-                     "set_speed_decel_mps2", "target_jerk_mps3", "fallback_decel_mps2"):
+        check_range(self, "barrier_min_scale", gt=0.0, le=1.0)
+        for name in ("horizon_s", "c_z", "zeta", "barrier_speed_mps", "target_accel_mps2",
+                     "target_decel_mps2", "set_speed_decel_mps2", "target_jerk_mps3",
+                     "fallback_decel_mps2"):
             check_range(self, name, gt=0.0)
         for name in ("c_y", "c_ydot", "c_sdot", "c_thetadot", "c_theta", "c_v",
-                     "c_y_terminal", "c_e_terminal"):
+                     "c_y_terminal", "c_e_terminal", "c_v_negative"):
             check_range(self, name, ge=0.0)
         check_range(self, "n_stages", ge=2, le=400)
         if self.cost == "J3" and self.c_thetadot <= 0:
