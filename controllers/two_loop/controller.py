@@ -307,6 +307,8 @@ class TwoLoopController:
             residual=float(plan.residual), fallback=fallback,
             guard_fired=int(plan.guard_fired),
             steer_outer_rad=out.steer_outer_rad, steer_corr_rad=out.steer_corr_rad,
+            steer_corr_integral_rad=out.steer_corr_integral_rad,
+            preview_weight=out.preview_weight,
             torque_outer_nm=out.torque_outer_nm, torque_corr_nm=out.torque_corr_nm,
             planned_speed_mps=float(speeds[0]) if speeds.size else 0.0,
             planned_speed_min_mps=float(np.min(speeds)) if speeds.size else 0.0,

@@ -16,6 +16,10 @@ class TwoLoopDiagnostics(StepDiagnostics):
 
     steer_outer_rad, torque_outer_nm: conversion (13)(14) with feed-forward [rad, N m];
     steer_corr_rad, torque_corr_nm: preview corrections (38)(39) [rad, N m];
+    steer_corr_integral_rad: the integral's part of steer_corr_rad, K_Isc I [rad];
+    preview_weight: the corrections' lane-holding weight w (1 while the plan holds its
+        lane, towards 0 while it moves across the road;
+        :mod:`controllers.two_loop.tracker`) [-];
     planned_speed_mps: the plan's V at stage 0 [m/s]; planned_speed_min_mps: the least V
         over the plan's stages [m/s];
     preview_err_t_m, preview_err_n_m: preview error PE along the path's tangent and
@@ -46,6 +50,8 @@ class TwoLoopDiagnostics(StepDiagnostics):
 
     steer_outer_rad: float = math.nan
     steer_corr_rad: float = math.nan
+    steer_corr_integral_rad: float = math.nan
+    preview_weight: float = math.nan
     torque_outer_nm: float = math.nan
     torque_corr_nm: float = math.nan
     planned_speed_mps: float = math.nan

@@ -6,9 +6,31 @@ error PE = planned - predicted at tau_p = Np dt_p split along the path's tangent
 normal, docs/method.md §7), this stage holds what lives between steps: the integral
 of PE_n and the preview itself. Per control period, with dt the elapsed time:
 
-    I      <- clip(I + PE_n dt, -integral_limit_ms, integral_limit_ms)
-    delta_c = K_Psc PE_n + K_Isc I,    T_c = K_Pvc PE_t                 (38)(39)
-    delta   = delta_ol + delta_c,      T   = T_ol + T_c                 (40)(41)
+    v_lat   = |y*(tau_p) - y*(0)| / tau_p                               plan's lateral speed
+    w       = exp(-(v_lat / manoeuvre_speed_mps)²)                      1 holding a lane
+    I      <- clip(I exp(-(1 - w) dt / bleed_s) + w PE_n dt, ±integral_limit_ms)
+    e_b     = sign(PE_n) max(|PE_n| - manoeuvre_band_m, 0)              beyond the band
+    delta_c = K_Psc (w PE_n + (1 - w) e_b) + K_Isc I,  T_c = K_Pvc PE_t  (38)(39)
+    delta   = delta_ol + delta_c,        T   = T_ol + T_c               (40)(41)
+
+Why the weight w: the preview drives the STVM on *one* plan with the conversion alone,
+while the real car gets a new plan every period, started at the measured state (the
+outer loop closes the position loop). Where the plan moves across the road (a pass,
+a return) the two differ: measured on the R = 400 m curve with feed-forward, the
+preview predicted 0.05-0.08 m of lateral error during the pass where the car ended
+0.00-0.03 m from the plan. Corrections on that prediction (and an integral charged
+by it, which then steered for seconds after the manoeuvre) made the tracking worse.
+Holding a lane (v_lat ~ 0) the prediction is right and what it sees is what the
+conversion cannot do by itself (the paper's case: the steady cornering steer). So
+the integration acts while the plan holds its lateral position, and while it moves
+the integral is bled off over ``bleed_s``: it restarts from what the new lane needs,
+not from what the manoeuvre charged. While the plan moves, the proportional part acts
+only on the predicted error beyond ``manoeuvre_band_m`` (the size of the
+misprediction the re-planning absorbs): a plan the conversion cannot follow at all
+(the J1 cost's chattering heading, which without the preview leaves the road, 11 m
+off its lane) is still corrected. The plan's lateral speed is read from its lateral
+offset, |y*(tau_p) - y*(0)| / tau_p, a state that stays smooth where a cost makes the
+heading chatter.
 
 With ``preview`` off (or a non-finite PE) the corrections are 0 and I is kept.
 """
@@ -42,13 +64,24 @@ class PreviewParams:
     k_psc: float = param(0.1, "rad/m", "K_Psc: normal preview error -> steer (39)")
     k_isc: float = param(0.05, "rad/(m s)", "K_Isc: integral of the normal error -> steer")
     integral_limit_ms: float = param(5.0, "m s", "clamp of the integral of PE_n")
+    manoeuvre_speed_mps: float = param(
+        0.4, "m/s", "plan's lateral speed across the road at which the corrections fade "
+        "to exp(-1): holding a lane the plan's stays below 0.1-0.3 m/s (a car settling "
+        "back to the lane centre), a pass or return reaches 1-1.5 m/s")
+    bleed_s: float = param(0.5, "s", "time constant of the integral's bleed while the plan "
+                           "moves across the road (about the outer loop's settling time)")
+    manoeuvre_band_m: float = param(
+        0.1, "m", "while the plan moves across the road, the size of PE_n the "
+        "re-planning absorbs (the preview mispredicted 0.05-0.08 m on a pass the car "
+        "followed to 0.00-0.03 m): the proportional correction acts on the excess only")
     feedforward: bool = param(True, "-", "cornering steer (L + K_us V²) omega/V and m R dV/dt")
 
     def __post_init__(self) -> None:
         check_leaves(self)
-        for name in ("preview_dt_s", "k_ps"):
+        for name in ("preview_dt_s", "k_ps", "manoeuvre_speed_mps", "bleed_s"):
             check_range(self, name, gt=0.0)
-        for name in ("lookahead_s", "k_pv", "k_pvc", "k_psc", "k_isc", "integral_limit_ms"):
+        for name in ("lookahead_s", "k_pv", "k_pvc", "k_psc", "k_isc", "integral_limit_ms",
+                     "manoeuvre_band_m"):
             check_range(self, name, ge=0.0)
         check_range(self, "n_preview", ge=1, le=1000)
 
@@ -63,6 +96,8 @@ class TrackerOutput:
     preview_err_n_m: float
     steer_corr_rad: float
     torque_corr_nm: float
+    steer_corr_integral_rad: float = 0.0  # K_Isc I, the integral's part of steer_corr_rad
+    preview_weight: float = 1.0  # w: 1 holding a lane, -> 0 while the plan moves across
 
     @property
     def steer_rad(self) -> float:
@@ -129,10 +164,29 @@ class PreviewTracker:
                    p.n_preview, p.preview_dt_s, meta, coef, knots, self.preview_xy_m, out)
         d_ol, t_ol, pe_t, pe_n = float(out[0]), float(out[1]), float(out[2]), float(out[3])
         if p.preview and math.isfinite(pe_n) and math.isfinite(pe_t):
-            self.integral_ms = min(max(self.integral_ms + pe_n * dt_s, -p.integral_limit_ms),
+            w = self._lane_holding_weight(tau, states)
+            bled = self.integral_ms * math.exp(-(1.0 - w) * dt_s / p.bleed_s)
+            self.integral_ms = min(max(bled + w * pe_n * dt_s, -p.integral_limit_ms),
                                    p.integral_limit_ms)
-            d_c = p.k_psc * pe_n + p.k_isc * self.integral_ms
+            beyond = math.copysign(max(abs(pe_n) - p.manoeuvre_band_m, 0.0), pe_n)
+            d_i = p.k_isc * self.integral_ms
+            d_c = p.k_psc * (w * pe_n + (1.0 - w) * beyond) + d_i
             t_c = p.k_pvc * pe_t
         else:
-            d_c, t_c = 0.0, 0.0
-        return TrackerOutput(d_ol, t_ol, pe_t, pe_n, d_c, t_c)
+            d_c, t_c, d_i, w = 0.0, 0.0, 0.0, 1.0
+        return TrackerOutput(d_ol, t_ol, pe_t, pe_n, d_c, t_c, d_i, w)
+
+    def _lane_holding_weight(self, tau: np.ndarray, states: np.ndarray) -> float:
+        """w = exp(-(v_lat / manoeuvre_speed_mps)²), v_lat the plan's mean lateral speed
+        across the road over the preview horizon, |y*(tau_p) - y*(0)| / tau_p (module
+        docstring; the lateral offset y*, a state, is smooth where a cost such as J1
+        makes the heading chatter); 1 if not finite."""
+        p = self.params
+        tau_p = min(p.n_preview * p.preview_dt_s, float(tau[-1]))
+        if not tau_p > 0.0:
+            return 1.0
+        y_p = float(np.interp(tau_p, tau[: states.shape[0]], states[:, 1]))
+        v_lat = abs(y_p - float(states[0, 1])) / tau_p
+        if not math.isfinite(v_lat):
+            return 1.0
+        return math.exp(-((v_lat / p.manoeuvre_speed_mps) ** 2))

@@ -195,8 +195,14 @@ def analyse_preview(run: PaperRun) -> tuple[PreviewResult, Curves]:
     c = curves_of(run)
     nan_col = np.full(len(rec.trace), NAN)
     corr = rec.trace.extra.get("steer_corr_rad", nan_col)
-    prop = run.variant.k_psc_radpm * rec.trace.extra.get("preview_err_n_m", nan_col) \
-        if run.variant.preview else np.zeros(len(rec.trace))
+    # the integral's part as the tracker logged it (older runs: K_Psc PE_n taken as the
+    # proportional part, the law before the lane-holding weight)
+    if "steer_corr_integral_rad" in rec.trace.extra:
+        prop = corr - rec.trace.extra["steer_corr_integral_rad"]
+    else:
+        prop = run.variant.k_psc_radpm * rec.trace.extra.get("preview_err_n_m", nan_col) \
+            if run.variant.preview else np.zeros(len(rec.trace))
+
     return PreviewResult(
         run=run.name, preview=run.variant.preview, feedforward=run.variant.feedforward,
         tau_s=run.variant.preview_horizon_s, error_rms_m=rms(c.plan_error_m),
