@@ -97,6 +97,15 @@ net = "straight_2lane"
 duration_s = 12.0
 ego = { lane = 0, pos_m = 60.0, speed_mps = 4.5, target_speed_mps = 4.5 }
 replay = { tracks = "jitter.tracks.parquet", mode = "replay" }
+
+# a recorded car in the right lane at the ego's speed, 2 m ahead of it, its box 0.5 m
+# into the ego's (left) lane: no lateral reference asked for
+[[scenario]]
+name = "squeezed_alongside"
+net = "straight_2lane"
+duration_s = 10.0
+ego = { lane = 1, pos_m = 60.0, speed_mps = 20.0, target_speed_mps = 20.0 }
+replay = { tracks = "alongside.tracks.parquet", mode = "replay" }
 """
 
 
@@ -114,10 +123,22 @@ def _jitter_tracks(path: Path) -> None:
     write_tracks(path, TrackSet((car,), dt))
 
 
+def _alongside_tracks(path: Path) -> None:
+    """A car 4.5 x 1.8 m at 20 m/s in the right lane of straight_2lane, its centre 0.4 m
+    right of the line between the lanes (y = 0): its box reaches 0.5 m into the left lane,
+    where the ego drives; it starts 2 m ahead of the ego's CG."""
+    dt = 0.04
+    t = np.arange(0.0, 12.0 + 1e-9, dt)
+    car = Track("rec_alongside", "car", 4.5, 1.8, t, 62.0 + 20.0 * t, np.full(t.size, -0.4),
+                np.zeros(t.size), np.full(t.size, 20.0))
+    write_tracks(path, TrackSet((car,), dt))
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     base = tmp_path_factory.mktemp("threats")
     _jitter_tracks(base / "jitter.tracks.parquet")
+    _alongside_tracks(base / "alongside.tracks.parquet")
     return run_catalog(base, CATALOG)
 
 
@@ -276,3 +297,28 @@ def test_a_distant_cut_in_is_braked_for_early_and_gently(runs: Path) -> None:
     assert not tr["emergency"].to_numpy().astype(bool).any()
     gap, _ = _gap_and_closing(run_dir, "actor_cutter")
     assert np.nanmin(gap[t > moves]) >= 13.0
+
+
+def test_a_car_squeezing_the_lane_does_not_push_the_ego_out_of_it(runs: Path) -> None:
+    """Lanes kept, not pushed (issue #33): a car alongside reaching 0.5 m into the ego's
+    lane, no lateral reference asked for (the behaviour keeps the lane). Its ellipse's
+    barrier used to push the ego 2.7 m left, over the road's edge (5 s off-road); the
+    OCP's lane corridor (the lane's edges less half the ego's width and 0.15 m) now holds
+    the plan: the ego's box never crosses its lane's lines, the CG stays within 0.1 m of
+    the corridor (0.08 m past it at most, measured), and nothing is hit."""
+    run_dir = runs / "squeezed_alongside"
+    record = load_run(run_dir)
+    assert record.verdict.value("collision") == 0.0
+    assert record.verdict.value("offroad_s") == 0.0
+    tr = pd.read_parquet(run_dir / "trace.parquet")
+    assert set(tr["reason_code"]) == {"keep"}
+    assert np.all(tr["lat_ref_m"].abs() < 1e-9)
+    assert int(tr["n_obstacles"].max()) >= 1
+    lat = tr["lat_dev_m"].to_numpy()
+    half_w = 0.5 * VehicleParams().width_m
+    assert np.all(np.abs(lat) + half_w < 1.75), np.abs(lat).max()  # inside its lane's lines
+    hi = tr["lane_corridor_hi_m"].to_numpy()
+    assert np.all(hi == pytest.approx(0.65))
+    assert lat.max() < hi.max() + 0.1
+    assert not tr["fallback"].to_numpy().astype(bool).any()
+

@@ -6,7 +6,9 @@ Per control period (:meth:`TwoLoopController.step`):
    projection (``Observation.ego``; without it, its own, hinted by the previous s);
    theta_a = psi + atan2(v, u) unwrapped next to gamma(s);
 2. lateral-reference shaper (:mod:`controllers.two_loop.lateral`): the behaviour's
-   stepped ``lateral_reference_m`` -> smooth yr and the scheduled weight Cy;
+   stepped ``lateral_reference_m`` -> smooth yr and the scheduled weight Cy, and the
+   lane corridor [y_lo, y_hi] the plan is kept in (the lane of the reference, or the
+   lanes of a change under way; C/GMRES only);
 3. launch supervisor (:mod:`controllers.two_loop.launch`): below walking speed it may
    drive instead of the planner, and hands over with a blend;
 4. outer planner (:class:`controllers.two_loop.outer.protocol.OuterPlanner`: C/GMRES
@@ -65,10 +67,11 @@ from controllers.two_loop.fallback import (
     planner_emergency,
 )
 from controllers.two_loop.jerk import JerkLimiter
-from controllers.two_loop.lateral import LateralReferenceShaper
+from controllers.two_loop.lateral import LaneCorridor, LateralReferenceShaper
 from controllers.two_loop.launch import LaunchSupervisor
 from controllers.two_loop.outer.protocol import (
     CruiseAware,
+    LaneCorridorAware,
     OuterPlan,
     OuterPlanner,
     PlannerFactory,
@@ -142,6 +145,7 @@ class TwoLoopController:
         self._planner_factory = planner_factory
         p = self.params
         self.lateral = LateralReferenceShaper(p.lateral)
+        self.corridor = LaneCorridor(p.lateral)
         self.launch = LaunchSupervisor(p.launch, p.outer, p.policy)
         self.tracker = PreviewTracker(p.inner)
         self.mrm = MinimalRiskManeuver(p.fallback, p.outer.target_accel_mps2, p.policy)
@@ -187,6 +191,7 @@ class TwoLoopController:
         self._t_prev = None
         self.plan = None
         self.lateral.reset()
+        self.corridor.reset(context.lane_width_m, context.vehicle.width_m)
         self.mrm.reset()
         vp = context.vehicle
         # The car starts cruising: the limiter starts at the torque that holds its speed.
@@ -248,6 +253,10 @@ class TwoLoopController:
                                     evasive=bool(observation.evasive),
                                     curvature_1pm=on_path.curvature_1pm)
         c_y = self.lateral.weight(self.params.outer.c_y)
+        y_lo, y_hi = self.corridor.update(float(observation.lateral_reference_m),
+                                          float(x0[1]), y_ref)
+        if isinstance(self.planner, LaneCorridorAware):
+            self.planner.set_lane_corridor(y_lo, y_hi)
         target = float(observation.target_speed_mps)
         if self.mrm.due(t_s):  # back to the planner, restarted at the measured state
             self.mrm.release(t_s)
@@ -315,6 +324,7 @@ class TwoLoopController:
             preview_err_t_m=out.preview_err_t_m, preview_err_n_m=out.preview_err_n_m,
             outer_updates=updates, lateral_ref_m=y_ref,
             lateral_ref_rate_mps=self.lateral.rate_mps, lateral_weight=c_y,
+            lane_corridor_lo_m=y_lo, lane_corridor_hi_m=y_hi,
             launch=self.launch.active, launch_weight=lw,
             launch_ramp_speed_mps=self.launch.ramp.speed_mps, mrm=self.mrm.active,
             mrm_hold_s=self.mrm.hold_s, ocp_target_speed_mps=float(plan.target_speed_mps),

@@ -27,6 +27,8 @@ class TwoLoopDiagnostics(StepDiagnostics):
     outer_updates: planner updates this period (0 in launch mode) [-];
     lateral_ref_m, lateral_ref_rate_mps: the shaped reference yr and yr' [m, m/s];
     lateral_weight: Cy of this period [1/(m² s)];
+    lane_corridor_lo_m, lane_corridor_hi_m: the lane corridor [y_lo, y_hi] the plan is
+        kept in [m, left +] (-inf/+inf: none);
     launch: the launch law drives; launch_weight: its share of the command [-] (1 in
         launch, easing to 0 after the hand-over); launch_ramp_speed_mps: the launch
         ramp's speed [m/s];
@@ -62,6 +64,8 @@ class TwoLoopDiagnostics(StepDiagnostics):
     lateral_ref_m: float = math.nan
     lateral_ref_rate_mps: float = math.nan
     lateral_weight: float = math.nan
+    lane_corridor_lo_m: float = math.nan
+    lane_corridor_hi_m: float = math.nan
     launch: bool = False
     launch_weight: float = math.nan
     launch_ramp_speed_mps: float = math.nan

@@ -31,6 +31,14 @@ phi in [0, 1] ramping linearly over ``weight_time_s`` toward 1 while a reference
 engaged and toward 0 otherwise. Engaged: from r_raw != 0 until, with r_raw back at 0,
 both yr and the car are on it (within ``_YR_SETTLED_M`` and ``_CAR_SETTLED_M``).
 Why and how the values were chosen: docs/two_loop.md "Lateral reference".
+
+Lane corridor (:class:`LaneCorridor`): the lateral band [y_lo, y_hi] the OCP keeps the
+plan's CG in (docs/two_loop.md, "Lane corridor"): the lane kept, centred on the
+behaviour's reference r_raw (the centre of the lane the plan is in, exact on real nets),
+its half width w/2 - b/2 - ``corridor_margin_m`` (w the lane width, b the ego's width);
+from a change of r_raw (a lane change, pass, evasion, return or abort: the behaviour's
+decision) the union of every lane r_raw named since, until the car and yr are settled in
+the last one.
 """
 
 from __future__ import annotations
@@ -59,13 +67,17 @@ class LateralRefParams:
                                     "lateral acceleration of a move plus the curve's V² kappa")
     min_move_lat_acc_mps2: float = param(0.4, "m/s²",
                                          "a move's own lateral acceleration on the tightest curve")
+    corridor: bool = param(True, "-", "keep the plan in the lane corridor (the lanes the "
+                           "behaviour allows)")
+    corridor_margin_m: float = param(0.15, "m", "the lane corridor's margin: the ego's box "
+                                     "stays this far inside the lane's edges")
 
     def __post_init__(self) -> None:
         check_leaves(self)
         for name in ("rate_mps", "heading_rad", "weight_time_s", "evasive_rate_mps",
                      "evasive_heading_rad", "max_lat_acc_mps2", "min_move_lat_acc_mps2"):
             check_range(self, name, gt=0.0)
-        for name in ("filter_s", "c_y_engaged"):
+        for name in ("filter_s", "c_y_engaged", "corridor_margin_m"):
             check_range(self, name, ge=0.0)
 
 
@@ -184,3 +196,67 @@ class LateralReferenceShaper:
                 yd += h * ((r - yr) / (tf * tf) - 2.0 * yd / tf)
                 yr += h * yd
         self._ramp, self._yr, self._yr_rate = r, yr, yd
+
+
+_CORRIDOR_MIN_HALF_M = 0.1  # the corridor's least half width [m] (a lane barely the car's)
+_CORRIDOR_SAME_LANE_M = 0.05  # r_raw moving less than this is the same lane [m]
+
+
+class LaneCorridor:
+    """The lane corridor [y_lo, y_hi] [m, left +] of the OCP (module doc).
+
+    ``update`` once per control period with the behaviour's r_raw, the car's offset and
+    the shaper's yr; ``bounds_m`` reads it. The corridor only widens while a change is
+    under way (a parameter step of an exterior penalty is no step in the residual of a
+    plan inside it) and narrows to the target lane once the car is inside it and yr has
+    settled on r_raw.
+    """
+
+    def __init__(self, params: LateralRefParams) -> None:
+        self.params = params
+        self.half_width_m = math.inf
+        self.reset(math.inf, 0.0)
+
+    def reset(self, lane_width_m: float, ego_width_m: float) -> None:
+        """Not started; the half width from the lane's and the ego's widths [m]."""
+        half = 0.5 * lane_width_m - 0.5 * ego_width_m - self.params.corridor_margin_m
+        self.half_width_m = max(half, _CORRIDOR_MIN_HALF_M) if math.isfinite(half) else math.inf
+        self._centre = math.nan
+        self._lo = -math.inf
+        self._hi = math.inf
+        self._changing = False
+
+    @property
+    def bounds_m(self) -> tuple[float, float]:
+        """(y_lo, y_hi) [m] ((-inf, inf) before the first update or when turned off)."""
+        return self._lo, self._hi
+
+    @property
+    def changing(self) -> bool:
+        """A change of lane is under way (the corridor spans its lanes)."""
+        return self._changing
+
+    def update(self, raw_m: float, y_now_m: float, yr_m: float) -> tuple[float, float]:
+        """Advance with the behaviour's reference r_raw, the car's offset and yr [m]."""
+        h = self.half_width_m
+        if not self.params.corridor or not math.isfinite(h):
+            self._lo, self._hi = -math.inf, math.inf
+            return self.bounds_m
+        raw = raw_m if math.isfinite(raw_m) else (self._centre if math.isfinite(
+            self._centre) else 0.0)
+        y = y_now_m if math.isfinite(y_now_m) else raw
+        if not math.isfinite(self._centre):  # start: the lane, and the car where it is
+            self._centre = raw
+            self._lo, self._hi = min(raw - h, y), max(raw + h, y)
+            self._changing = not (raw - h <= y <= raw + h)
+        elif abs(raw - self._centre) > _CORRIDOR_SAME_LANE_M or self._changing:
+            self._changing = True
+            self._lo, self._hi = min(self._lo, raw - h), max(self._hi, raw + h)
+            self._centre = raw
+        else:  # the same lane (its centre may drift slowly along a real road)
+            self._centre = raw
+            self._lo, self._hi = raw - h, raw + h
+        if self._changing and abs(y - raw) <= h and abs(yr_m - raw) <= _YR_SETTLED_M:
+            self._changing = False
+            self._lo, self._hi = raw - h, raw + h
+        return self.bounds_m

@@ -124,6 +124,7 @@ class CgmresOuter(CruiseSetPoint):
         self._yr = 0.0  # lateral reference at the previous update [m]
         self._cy = params.c_y  # Cy at the previous update
         self._czs = 1.0  # the barrier's speed scale sigma at the previous update
+        self._corridor: tuple[float, float] | None = None  # lane corridor [y_lo, y_hi] [m]
         self._fallback_until = -math.inf
         self._diverging_since = math.inf  # when E first exceeded diverging_residual [s]
         self._fallback_v0 = 0.0
@@ -140,7 +141,25 @@ class CgmresOuter(CruiseSetPoint):
               barrier_weight_scale: float | None = None) -> np.ndarray:
         return pack_params(self.params, target_speed_mps, lateral_reference_m,
                            lateral_weight=lateral_weight, row_scaling=self.params.row_scaling,
-                           barrier_weight_scale=barrier_weight_scale)
+                           barrier_weight_scale=barrier_weight_scale,
+                           lane_corridor_m=self._corridor)
+
+    def set_lane_corridor(self, y_lo_m: float, y_hi_m: float) -> None:
+        """The lane corridor [y_lo, y_hi] [m, left +] of the following updates: the OCP's
+        penalty C_lane (max(0, y - y_hi)² + max(0, y_lo - y)²) (:mod:`..ocp`, Q(y));
+        infinite bounds: none. It is zero inside, so widening it (a lane change starting)
+        leaves the residual of a plan inside unchanged; the caller narrows it only once
+        the car is inside the narrower one
+        (:class:`controllers.two_loop.lateral.LaneCorridor`)."""
+        lo, hi = float(y_lo_m), float(y_hi_m)
+        if math.isnan(lo) or math.isnan(hi) or lo > hi:
+            raise ValueError(f"lane corridor: expected y_lo <= y_hi, got {lo!r}, {hi!r}")
+        self._corridor = (lo, hi)
+
+    @property
+    def lane_corridor_m(self) -> tuple[float, float] | None:
+        """The lane corridor of the updates (None: none)."""
+        return self._corridor
 
     def _barrier_scale(self) -> float:
         """sigma of this update (:func:`barrier_scale`): from the larger of the OCP's target

@@ -11,6 +11,9 @@ rate (x0b - x0a) / dt_total, h the forward-difference step, T(t) the growing hor
 
 The lateral reference yr, the weight Cy and the barrier's speed scale sigma move linearly
 across the call at the rates packed in prm (their motion enters F_t with the state's).
+The lane corridor [y_lo, y_hi] is held across the call (no rate: its penalty is zero
+inside, and the controller widens it at a change and narrows it only once the car is
+inside the narrower one, so a plan inside it sees no step in F).
 Afterwards E = ||F(U, x0b, t_a + dt_total)||_inf on the unscaled residual.
 
 Arguments are grouped (numba reads NamedTuples of arrays and scalars): :class:`Unknowns`

@@ -12,9 +12,15 @@ Models and costs (e = theta - gamma(s), D = 1 - y kappa(s)):
 * J3 (model (36)):     x = (s, y, theta), u = (V, omega, Z_1..Z_K)
 * f1 = V cos(e)/D, f2 = V sin(e)  (and theta' = omega for J3)
 
-    J1: L = Cy (y - yr)² + Ctheta e² + CV (V - Vt)² - sigma Cz sum ln(Z_j + zeta) + P(V)
-    J2: L = Cy (y - yr)² + Cyd f2² + Csd (f1 - Vt)² - sigma Cz sum ln(Z_j + zeta) + P(V)
+    J1: L = Cy (y - yr)² + Ctheta e² + CV (V - Vt)² - sigma Cz sum ln(Z_j + zeta) + P(V) + Q(y)
+    J2: L = Cy (y - yr)² + Cyd f2² + Csd (f1 - Vt)² - sigma Cz sum ln(Z_j + zeta) + P(V) + Q(y)
     J3: L = J2's L + Cthd omega²
+
+Q(y) = C_lane (max(0, y - y_hi)² + max(0, y_lo - y)²): the lane corridor [y_lo, y_hi]
+of the update (packed, ``_P_YLO``/``_P_YHI``; the lanes the behaviour lets the CG use,
+docs/two_loop.md "Lane corridor"), exactly zero inside, C¹ at its edges, stiff enough
+(C_lane >> Cy) that an ellipse's barrier cannot push the plan more than centimetres
+past an edge. Q'(y) = 2 C_lane (max(0, y - y_hi) - max(0, y_lo - y)) enters H_y.
 
 P(V) = Cvn min(V, 0)² keeps the planned speed from going negative (zero at V >= 0, so
 cruising is untouched). sigma in [barrier_min_scale, 1] scales the barrier with the
@@ -46,6 +52,7 @@ a1 = 2 Csd (f1 - Vt) + p_s, a2 = 2 Cyd f2 + p_y (J2/J3; for J1 a1 = p_s, a2 = p_
     H_s = a1 (V kappa sin e / D + V y kappa' cos e / D²) - a2 V kappa cos e
           + sum mu_j dc_j/ds   (- 2 Ctheta e kappa for J1)
     H_y = 2 Cy (y - yr) + a1 V kappa cos e / D² + sum mu_j dc_j/dy
+          + 2 C_lane (max(0, y - y_hi) - max(0, y_lo - y))
     H_theta = -a1 V sin e / D + a2 V cos e        (+ 2 Ctheta e for J1's input theta)
     H_V = a1 cos e / D + a2 sin e                 (+ 2 CV (V - Vt) for J1)
           + 2 Cvn min(V, 0)
@@ -79,6 +86,7 @@ from controllers.path.frenet import path_gamma
 from controllers.two_loop.outer.ocp_layout import (
     _FM,
     _P_CET,
+    _P_CLANE,
     _P_COST,
     _P_CSD,
     _P_CTH,
@@ -92,6 +100,8 @@ from controllers.two_loop.outer.ocp_layout import (
     _P_CZS,
     _P_SCALE,
     _P_VT,
+    _P_YHI,
+    _P_YLO,
     _P_YREF,
     _P_ZETA,
 )
@@ -106,6 +116,15 @@ def slot_weight(ob: np.ndarray, tshift: float) -> float:
     if wgt > 1.0:
         return 1.0
     return wgt
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def corridor_penalty(y: float, prm: np.ndarray) -> tuple[float, float]:
+    """(Q(y), Q'(y)) of the lane corridor: Q = C_lane (max(0, y - y_hi)² +
+    max(0, y_lo - y)²), exactly zero inside [y_lo, y_hi], C¹ at its edges."""
+    clane = prm[_P_CLANE]
+    d = max(y - prm[_P_YHI], 0.0) - max(prm[_P_YLO] - y, 0.0)
+    return clane * d * d, 2.0 * clane * d
 
 
 # ----------------------------------------------------------------------------- kernels
@@ -220,6 +239,9 @@ def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,  # n
             hth = 0.0
             hu_out[0] = a1 * f1_th + a2 * f2_th
             hu_out[1] = a1 * f1_v + a2 * f2_v
+    q, dq = corridor_penalty(y, prm)
+    hval += q
+    hy += dq
     # Cvn min(V, 0)²: zero (and no gradient) at every V >= 0.
     vneg = min(v, 0.0)
     if vneg < 0.0:

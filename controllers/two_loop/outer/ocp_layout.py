@@ -26,7 +26,11 @@ _P_CYR = 15  # rate of Cy [1/(m² s²)] when the caller schedules it (C/GMRES on
 # The barrier's speed scale sigma in [barrier_min_scale, 1] (Cz_eff = sigma Cz), its rate
 # [1/s] (C/GMRES only), and the weight Cvn of the penalty Cvn min(V, 0)² on negative speeds.
 _P_CZS, _P_CZSR, _P_CVN = 16, 17, 18
-N_PACKED = 19
+# The lane corridor [y_lo, y_hi] [m] of the update (the lanes the behaviour lets the CG
+# use; -inf / +inf: none) and the weight C_lane of its exterior penalty
+# C_lane (max(0, y - y_hi)² + max(0, y_lo - y)²).
+_P_YLO, _P_YHI, _P_CLANE = 19, 20, 21
+N_PACKED = 22
 # Fast-math flags of the hot kernels: no 'nnan'/'ninf' (non-finite checks stay valid), and
 # no 'reassoc'/'contract': with them LLVM may reorder sums and fuse multiply-adds
 # differently when a kernel is compiled in the run's process than when it comes from
@@ -73,7 +77,8 @@ def pack_params(params: OcpParams, target_speed_mps: float,  # noqa: PLR0913
                 lateral_reference_m: float = 0.0, lateral_reference_rate_mps: float = 0.0,
                 lateral_weight: float | None = None, lateral_weight_rate: float = 0.0,
                 row_scaling: bool = False, barrier_weight_scale: float | None = None,
-                barrier_weight_scale_rate: float = 0.0) -> np.ndarray:
+                barrier_weight_scale_rate: float = 0.0,
+                lane_corridor_m: tuple[float, float] | None = None) -> np.ndarray:
     """Packed float vector (N_PACKED,) for the compiled kernels (per-update data included).
 
     target_speed_mps: Vt [m/s]; lateral_reference_m: yr [m] in Cy (y - yr)² and
@@ -83,7 +88,9 @@ def pack_params(params: OcpParams, target_speed_mps: float,  # noqa: PLR0913
     control period (ignored by the residual itself); row_scaling: the residual returns
     D(U) F (a C/GMRES device, see :func:`ocp_residual`); barrier_weight_scale: sigma of
     the barrier weight sigma Cz (None: :func:`barrier_scale` of the target speed), its rate
-    [1/s] moved across a control period by C/GMRES like Cy's.
+    [1/s] moved across a control period by C/GMRES like Cy's; lane_corridor_m: the
+    lane corridor (y_lo, y_hi) [m] of the penalty C_lane (max(0, y - y_hi)² +
+    max(0, y_lo - y)²) (None: no corridor, the penalty is zero everywhere).
     """
     out = np.zeros(N_PACKED)
     out[_P_COST] = params.cost_id
@@ -106,6 +113,12 @@ def pack_params(params: OcpParams, target_speed_mps: float,  # noqa: PLR0913
                    else barrier_weight_scale)
     out[_P_CZSR] = barrier_weight_scale_rate
     out[_P_CVN] = params.c_v_negative
+    lo, hi = (-math.inf, math.inf) if lane_corridor_m is None else lane_corridor_m
+    if not lo <= hi:
+        raise ValueError(f"lane_corridor_m: expected y_lo <= y_hi, got {lane_corridor_m!r}")
+    out[_P_YLO] = lo
+    out[_P_YHI] = hi
+    out[_P_CLANE] = params.c_lane
     return out
 
 

@@ -33,7 +33,9 @@ class OcpParams:
     Running costs (e = theta - gamma(s), f1 = ds/dt, f2 = dy/dt):
     J1 = Cy (y - yr)² + Ctheta e² + CV (V - Vt)², J2 = Cy (y - yr)² + Cyd f2² +
     Csd (f1 - Vt)², J3 = J2 + Cthd omega², each minus sigma Cz sum_j ln(Z_j + zeta) and
-    plus Cvn min(V, 0)². sigma = clip(v / barrier_speed_mps, barrier_min_scale, 1), v the
+    plus Cvn min(V, 0)² and C_lane (max(0, y - y_hi)² + max(0, y_lo - y)²) (the lane
+    corridor [y_lo, y_hi] of the update, docs/two_loop.md "Lane corridor").
+    sigma = clip(v / barrier_speed_mps, barrier_min_scale, 1), v the
     problem's speed scale (the larger of Vt and the planned speed now).
     Terminal: CyT (y_N - yr)² + CeT e_N² (CeT for J3 only).
 
@@ -63,6 +65,8 @@ class OcpParams:
                                      "(at standstill)")
     c_v_negative: float = param(300.0, "s/m²", "Cvn: penalty Cvn min(V, 0)² on a negative "
                                 "planned speed")
+    c_lane: float = param(200.0, "1/(m² s)", "C_lane: exterior penalty C_lane d² on the "
+                          "distance d of y outside the lane corridor")
     c_y_terminal: float = param(0.0, "1/m²", "CyT: terminal lateral offset")
     c_e_terminal: float = param(2.0, "1/rad²", "CeT: terminal heading error (J3)")
     target_accel_mps2: float = param(1.5, "m/s²", "target-speed ramp: acceleration limit")
@@ -82,7 +86,7 @@ class OcpParams:
                      "fallback_decel_mps2"):
             check_range(self, name, gt=0.0)
         for name in ("c_y", "c_ydot", "c_sdot", "c_thetadot", "c_theta", "c_v",
-                     "c_y_terminal", "c_e_terminal", "c_v_negative"):
+                     "c_y_terminal", "c_e_terminal", "c_v_negative", "c_lane"):
             check_range(self, name, ge=0.0)
         check_range(self, "n_stages", ge=2, le=400)
         if self.cost == "J3" and self.c_thetadot <= 0:

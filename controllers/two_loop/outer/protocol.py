@@ -102,5 +102,15 @@ class CruiseAware(Protocol):
     def set_cruise_speed(self, cruise_speed_mps: float) -> None: ...
 
 
+@runtime_checkable
+class LaneCorridorAware(Protocol):
+    """A planner whose OCP keeps its plan in a lane corridor [y_lo, y_hi] [m, left +]
+    across the reference path (the lanes the behaviour lets the car use): C/GMRES's
+    exterior penalty (docs/two_loop.md, "Lane corridor"). The controller hands it the
+    corridor before every update; a planner that is not keeps no corridor (Ipopt)."""
+
+    def set_lane_corridor(self, y_lo_m: float, y_hi_m: float) -> None: ...
+
+
 # Builds a run's planner once the path is known: (path, number of obstacle slots K).
 PlannerFactory = Callable[[FrenetPath, int], OuterPlanner]

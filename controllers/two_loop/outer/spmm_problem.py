@@ -31,13 +31,17 @@ class SpmmProblem:
         """N (2 + 2K): the length of U with K obstacle slots."""
         return self.params.n_stages * stage_width(n_slots)
 
-    def residual(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray, target_speed: float,
+    def residual(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray,  # noqa: PLR0913
+                 target_speed: float,
                  horizon: float | None = None, tshift: float = 0.0, scaled: bool = False,
                  lateral_reference_m: float = 0.0,
+                 lane_corridor_m: tuple[float, float] | None = None,
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(F, states (N+1, 3), costates (N+1, 3)); F unscaled unless ``scaled``."""
+        """(F, states (N+1, 3), costates (N+1, 3)); F unscaled unless ``scaled``;
+        lane_corridor_m: (y_lo, y_hi) of the corridor penalty (None: none)."""
         n = self.params.n_stages
-        prm = pack_params(self.params, target_speed, lateral_reference_m, row_scaling=scaled)
+        prm = pack_params(self.params, target_speed, lateral_reference_m, row_scaling=scaled,
+                          lane_corridor_m=lane_corridor_m)
         xs = np.empty((n + 1, 3))
         ps = np.empty((n + 1, 12))
         f = np.empty(self.n_unknowns(obs.shape[0]))
@@ -46,14 +50,17 @@ class SpmmProblem:
                      float(tshift), prm, obs, self.w, self.meta, self.coef, xs, ps, f)
         return f, xs, ps[:, :3].copy()
 
-    def objective(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray, target_speed: float,
+    def objective(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray,  # noqa: PLR0913
+                  target_speed: float,
                   horizon: float | None = None, tshift: float = 0.0,
-                  with_multipliers: bool = False, lateral_reference_m: float = 0.0) -> float:
+                  with_multipliers: bool = False, lateral_reference_m: float = 0.0,
+                  lane_corridor_m: tuple[float, float] | None = None) -> float:
         """The discrete objective (reduced Lagrangian with ``with_multipliers``)."""
         return float(ocp_objective(np.ascontiguousarray(uvec, dtype=np.float64),
                                    np.asarray(x0, dtype=np.float64),
                                    float(horizon or self.params.horizon_s), float(tshift),
-                                   pack_params(self.params, target_speed, lateral_reference_m),
+                                   pack_params(self.params, target_speed, lateral_reference_m,
+                                               lane_corridor_m=lane_corridor_m),
                                    obs, self.w,
                                    self.meta, self.coef, with_multipliers))
 
