@@ -98,6 +98,25 @@ duration_s = 12.0
 ego = { lane = 0, pos_m = 60.0, speed_mps = 4.5, target_speed_mps = 4.5 }
 replay = { tracks = "jitter.tracks.parquet", mode = "replay" }
 
+# found by the threat_lead_brakes search family: the ego at 31.7 m/s, a lead 52 m ahead
+# at 18.3 m/s brakes at 8.3 m/s² to 1.3 m/s at 3 s (a car beside blocks the pass)
+[[scenario]]
+name = "lead_brakes_hard"
+net = "straight_2lane"
+duration_s = 14.0
+ego = { lane = 0, pos_m = 50.0, speed_mps = 31.697 }
+[[scenario.actors]]
+id = "lead"
+lane = 0
+pos_m = 102.037
+speed_mps = 18.295
+events = [ { t_s = 2.967, speed_mps = 1.294, accel_mps2 = 8.296 } ]
+[[scenario.actors]]
+id = "beside"
+lane = 1
+pos_m = 60.0
+speed_mps = 25.0
+
 # a recorded car in the right lane at the ego's speed, 2 m ahead of it, its box 0.5 m
 # into the ego's (left) lane: no lateral reference asked for
 [[scenario]]
@@ -322,3 +341,15 @@ def test_a_car_squeezing_the_lane_does_not_push_the_ego_out_of_it(runs: Path) ->
     assert lat.max() < hi.max() + 0.1
     assert not tr["fallback"].to_numpy().astype(bool).any()
 
+
+def test_a_lead_braking_hard_is_braked_for_with_its_own_braking_counted(runs: Path) -> None:
+    """The braking a lead needs counts the lead's own braking (its stopping point, not
+    its speed now): the ego at 31.7 m/s behind a lead braking at 8.3 m/s² from 18.3 m/s
+    with the pass blocked. The need of a lead at constant speed saw 1-2 m/s² where 6.7
+    were needed, and once the planner failed the minimal-risk manoeuvre braked at
+    8.2 m/s² into it (contact at 2.3 m/s); now no contact."""
+    run = load_run(runs / "lead_brakes_hard")
+    assert run.verdict is not None
+    assert run.verdict.value("collisions") == 0.0
+    gap, _ = _gap_and_closing(runs / "lead_brakes_hard", "actor_lead")
+    assert np.nanmin(gap) > 0.0

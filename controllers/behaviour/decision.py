@@ -111,7 +111,8 @@ class LaneBehaviour:
         side = pass_side(plan, follow)
         order = select_obstacles(scene, plan, lead, self.policy)
         obstacles = plan_ellipses(scene, order, plan, side, lead if follow else -1, self.policy,
-                                  self.ego.length_m, self.ego.width_m, self.lane_width_m)
+                                  self.ego.length_m, self.ego.width_m, self.lane_width_m,
+                                  self._accel)
         return Decision(obstacles=obstacles, side=side, reason=reason, target_speed_mps=target,
                         lateral_reference_m=scene.offset_m(plan.lane),
                         evasive=plan.changing and plan.evasive, reason_code=code,

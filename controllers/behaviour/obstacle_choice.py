@@ -26,7 +26,7 @@ import numpy.typing as npt
 
 from controllers.behaviour.ellipses import ellipse_semi_axes, offset_centre_y
 from controllers.behaviour.perception import LaneScene
-from controllers.behaviour.types import ObstaclePolicy, Obstacles, Side
+from controllers.behaviour.types import FloatArray, ObstaclePolicy, Obstacles, Side
 
 __all__ = ["LanePlan", "pass_side", "plan_ellipses", "select_obstacles"]
 
@@ -78,12 +78,14 @@ def select_obstacles(sc: LaneScene, plan: LanePlan, lead: int,
                              pol.max_obstacles)
 
 
-def plan_ellipses(sc: LaneScene, order: IntpArray, plan: LanePlan, side: int,
+def plan_ellipses(sc: LaneScene, order: IntpArray, plan: LanePlan, side: int,  # noqa: PLR0913
                   follow_lead: int, pol: ObstaclePolicy, ego_length_m: float,
-                  ego_width_m: float, lane_width_m: float) -> Obstacles:
+                  ego_width_m: float, lane_width_m: float,
+                  accel_mps2: FloatArray | None = None) -> Obstacles:
     """The ellipses of the vehicles ``order`` (module docstring), in the path's Frenet
     frame, each with its vehicle's id; ``follow_lead``: the index of the lead made a wall
-    (-1 none)."""
+    (-1 none); ``accel_mps2``: every vehicle's estimated acceleration [m/s²] (indexed
+    like ``sc.traffic``; None: not known), handed on as each ellipse's."""
     fn = sc.fn
     axes = np.array([ellipse_semi_axes(fn.length_m[i], fn.width_m[i], ego_length_m,
                                        ego_width_m, pol)
@@ -105,7 +107,10 @@ def plan_ellipses(sc: LaneScene, order: IntpArray, plan: LanePlan, side: int,
     return Obstacles(s_m=fn.s_m[order].copy(), y_m=y, speed_s_mps=fn.v_s_mps[order].copy(),
                      speed_y_mps=fn.v_y_mps[order].copy(), semi_a_m=semi_a,
                      semi_b_m=semi_b, vehicle_ids=tuple(sc.traffic.ids[i] for i in order),
-                     half_length_m=0.5 * (fn.length_m[order] + ego_length_m)
+                     half_length_m=0.5 * (fn.length_m[order] + ego_length_m),
+                     accel_s_mps2=(np.zeros(0) if accel_mps2 is None
+                                   or accel_mps2.shape[0] != sc.traffic.count
+                                   else accel_mps2[order].astype(float))
                      ).around_ego(float(sc.ego.s_m), float(sc.ego.lat_m))
 
 

@@ -290,6 +290,11 @@ class Obstacles:
     boxes touch end to end; or an empty array when not known (then it is inferred from
     the semi-axes, which only holds for an ellipse built by ``ellipse_semi_axes`` and
     never reshaped: not for a followed lead's wall or a shrunk ellipse).
+    ``accel_s_mps2``: each vehicle's estimated acceleration along the path [m/s²] (K
+    entries; :mod:`controllers.behaviour.tracking`), or an empty array when not known:
+    the braking an obstacle needs counts a lead's own braking
+    (:func:`controllers.two_loop.fallback.most_urgent_obstacle`); the ellipses' motion
+    stays the constant-velocity prediction.
     """
 
     s_m: FloatArray
@@ -300,15 +305,17 @@ class Obstacles:
     semi_b_m: FloatArray
     vehicle_ids: tuple[str, ...] = ()
     half_length_m: FloatArray = field(default_factory=lambda: np.zeros(0))
+    accel_s_mps2: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     def __post_init__(self) -> None:
         if self.vehicle_ids and len(self.vehicle_ids) != self.count:
             raise ValueError(f"Obstacles.vehicle_ids must have {self.count} entries (or "
                              f"none), got {len(self.vehicle_ids)}")
-        n_half = int(np.asarray(self.half_length_m).shape[0])
-        if n_half not in (0, self.count):
-            raise ValueError(f"Obstacles.half_length_m must have {self.count} entries (or "
-                             f"none), got {n_half}")
+        for name in ("half_length_m", "accel_s_mps2"):
+            n = int(np.asarray(getattr(self, name)).shape[0])
+            if n not in (0, self.count):
+                raise ValueError(f"Obstacles.{name} must have {self.count} entries (or "
+                                 f"none), got {n}")
 
     @staticmethod
     def empty() -> Obstacles:
@@ -321,15 +328,13 @@ class Obstacles:
 
     def ahead(self, tau_s: float) -> Obstacles:
         """The same ellipses ``tau_s`` [s] later by their own constant-velocity
-        prediction: centres s + speed_s tau, y + speed_y tau; speeds, semi-axes, ids and
-        half lengths held (the controller's prediction over its horizon, started tau
-        later). ``tau_s = 0`` or no obstacle: ``self``."""
+        prediction: centres s + speed_s tau, y + speed_y tau; speeds, semi-axes, ids,
+        half lengths and accelerations held (the controller's prediction over its
+        horizon, started tau later). ``tau_s = 0`` or no obstacle: ``self``."""
         if tau_s == 0.0 or self.count == 0:
             return self
-        return Obstacles(self.s_m + self.speed_s_mps * tau_s,
-                         self.y_m + self.speed_y_mps * tau_s, self.speed_s_mps,
-                         self.speed_y_mps, self.semi_a_m, self.semi_b_m, self.vehicle_ids,
-                         self.half_length_m)
+        return replace(self, s_m=self.s_m + self.speed_s_mps * tau_s,
+                       y_m=self.y_m + self.speed_y_mps * tau_s)
 
     def around_ego(self, ego_s_m: float, ego_lat_m: float) -> Obstacles:
         """The same ellipses with every one that would contain the ego's CG at

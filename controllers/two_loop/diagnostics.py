@@ -42,7 +42,8 @@ class TwoLoopDiagnostics(StepDiagnostics):
         braking that obstacle needs [m/s²]; emergency_ds_m, emergency_dy_m: its ellipse
         centre from the ego's CG along and across the path [m] (all NaN without an
         emergency);
-    threat_need_mps2: the braking the nearest obstacle ahead needs, b = closing² / (2 d)
+    threat_need_mps2: the braking the nearest obstacle ahead needs, b = closing² / (2 d),
+        a braking lead's own braking counted
         (:func:`controllers.two_loop.fallback.most_urgent_obstacle`) [m/s²];
     brake_floor_mps2: the threat floor's deceleration, 0 when it is not active [m/s²];
     brake_source: which stage set the command

@@ -249,13 +249,47 @@ def needed_decel_mps2(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | N
     return most_urgent_obstacle(x0, speed_mps, obstacles, policy, standstill_m)[0]
 
 
+def braking_need_mps2(speed_mps: float, lead_speed_mps: np.ndarray, d_m: np.ndarray,
+                      lead_braking_mps2: np.ndarray) -> np.ndarray:
+    """The constant deceleration b [m/s²] that keeps an ego at ``speed_mps`` (v) clear of
+    each obstacle ahead at distance ``d_m`` (d) moving at ``lead_speed_mps`` (v_j >= 0)
+    and braking at ``lead_braking_mps2`` (b_j >= 0, to a stop), all (K,):
+
+    * the speeds match while the obstacle still moves (closing c = v - v_j > 0 and the
+      match time 2d/c at b = b_j + c² / (2d) comes before its stop, v_j / b_j):
+      b = b_j + c² / (2d) (with b_j = 0 the constant-speed law c² / (2d));
+    * otherwise the ego must stop within the obstacle's stopping point:
+      b = v² / (2 (d + v_j² / (2 b_j))) (0 when b_j = 0 and nothing closes).
+
+    d <= 0 while closing (or with the obstacle braking) is inf; nothing closing and no
+    braking is 0."""
+    v = float(speed_mps)
+    c = v - lead_speed_mps
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d_pos = np.maximum(d_m, 1e-9)
+        match = lead_braking_mps2 + np.maximum(c, 0.0) ** 2 / (2.0 * d_pos)
+        stops = lead_braking_mps2 > 0.0
+        t_stop = np.where(stops, lead_speed_mps / np.where(stops, lead_braking_mps2, 1.0),
+                          np.inf)
+        before_stop = (c > 0.0) & (2.0 * d_pos / np.maximum(c, 1e-12) <= t_stop)
+        stop_within = np.where(
+            stops, v * v / (2.0 * (d_pos + lead_speed_mps**2
+                                   / (2.0 * np.where(stops, lead_braking_mps2, 1.0)))),
+            0.0)
+        b = np.where(before_stop, match, stop_within)
+        b = np.where(d_m > 0.0, b, np.where((c > 0.0) | stops, np.inf, 0.0))
+    return np.asarray(b, dtype=float)
+
+
 def most_urgent_obstacle(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | None,
                          policy: ObstaclePolicy | None = None, standstill_m: float = 1.0
                          ) -> tuple[float, int]:
     """(b [m/s²], j): the braking b that keeps the ego's CG (Frenet x0 = (s, y, ...),
     speed v) out of the nearest ellipse ahead covering its lateral offset:
     b = (v - v_j)² / (2 d_j), d_j = s_j - A_j - s the distance to the ellipse's rear point
-    along s, v_j the ellipse's speed along s (0 if nothing is ahead or nothing closes).
+    along s, v_j the ellipse's speed along s (0 if nothing is ahead or nothing closes);
+    an ellipse whose vehicle brakes (``obstacles.accel_s_mps2`` < 0) needs
+    :func:`braking_need_mps2` with that braking.
 
     Without ``policy``, inf once the CG is at or past that point (d_j <= 0) and closing.
     With the ``policy`` the ellipses were built with (a_j the box-sum half length:
@@ -294,10 +328,11 @@ def most_urgent_obstacle(x0: np.ndarray, speed_mps: float, obstacles: Obstacles 
         gap = ds[ahead] - half - standstill_m  # bumper gap less the standstill distance
         floor = obstacles.semi_a_m[ahead] - half - standstill_m  # = gap - d
         d = np.maximum(d, np.minimum(gap, floor))
-    closing = np.maximum(speed_mps - obstacles.speed_s_mps[ahead], 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        b = np.where(d > 0.0, closing**2 / (2.0 * np.maximum(d, 1e-9)),
-                     np.where(closing > 0.0, np.inf, 0.0))
+    lead_braking = (np.maximum(-obstacles.accel_s_mps2[ahead], 0.0)
+                    if obstacles.accel_s_mps2.shape[0] == obstacles.count
+                    else np.zeros(int(np.count_nonzero(ahead))))
+    b = braking_need_mps2(speed_mps, np.maximum(obstacles.speed_s_mps[ahead], 0.0), d,
+                          lead_braking)
     k = int(np.argmax(b))
     if not b[k] > 0.0:
         return 0.0, -1

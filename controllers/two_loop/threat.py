@@ -10,9 +10,10 @@ is measured directly instead, every period, from the gap now:
 
 with v the ego's speed, v_j the obstacle's speed along the path and d_j its distance
 less the standstill margin (the bumper gap less ``standstill_m`` where the boxes are
-close). Braking at b_k from now on ends the closing exactly ``standstill_m`` short of
-the obstacle (for an obstacle at constant speed); braking at ``margin`` b_k (> b_k)
-ends it with room to spare, and b_k then falls.
+close); for a lead that brakes, its own braking counted
+(:func:`~controllers.two_loop.fallback.braking_need_mps2`). Braking at b_k from now on
+ends the closing exactly ``standstill_m`` short of the obstacle; braking at ``margin``
+b_k (> b_k) ends it with room to spare, and b_k then falls.
 
 The floor F_k [m/s²] is the least deceleration handed out:
 
