@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -81,14 +82,16 @@ def test_every_template_imports(alks: Path) -> None:
     assert init.speed_mps == pytest.approx(40.0 / 3.6)
 
 
-def test_the_bundled_variations_are_what_the_import_makes(tmp_path: Path) -> None:
+def test_the_bundled_variations_are_what_the_import_makes() -> None:
     """catalogs/r157/variations is the import of the variation files with three sets
     each (--variants 3 --r157), byte for byte; each scenario is labelled with the section
-    its template names."""
+    its template names. (Imported into a folder beside it: a logical scenario names its
+    template relative to its catalog.)"""
     files = sorted(LOGICAL.glob("*_variation*.xosc"))
-    outcome = import_files(files, tmp_path, ImportOptions(r157=True, variants=3))
-    assert not outcome.failures, [str(f) for f in outcome.failures]
-    _same_files(tmp_path, PACK / "variations")
+    with tempfile.TemporaryDirectory(dir=PACK, prefix=".test-") as made:
+        outcome = import_files(files, Path(made), ImportOptions(r157=True, variants=3))
+        assert not outcome.failures, [str(f) for f in outcome.failures]
+        _same_files(Path(made), PACK / "variations")
     catalog = load_catalog(PACK / "variations" / "catalog.toml")
     sections = {s.name: s.labels["r157_section"] for s in catalog}
     # every file's own scenario and its sets but the crossing pedestrian's three (their

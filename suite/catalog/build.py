@@ -32,6 +32,7 @@ from suite.catalog.specs import (
     TrafficSpec,
     XfailSpec,
     labels_problem,
+    openscenario_problem,
     sumo_step_problem,
 )
 from suite.catalog.storyboard import Storyboard, StoryError, story_from_json
@@ -82,6 +83,7 @@ def build_variant(d: dict[str, Any], report: Report, *, catalog_path: Path,
     xfail = _spec(XfailSpec, d.get("xfail", MISSING), "xfail", report)  # a known failure
     story = _storyboard(d.get("storyboard", MISSING), catalog_path, report)
     labels = _labels(d.get("labels", {}), report)
+    _openscenario(d.get("openscenario", MISSING), report)
     _check_recorded_driver(controller, d.get("replay", MISSING), report)
     if network is not None and route is not None:
         check_placements(network, route, d.get("ego"), stalled_raw, traffic,
@@ -164,6 +166,16 @@ def _labels(raw: Any, report: Report) -> dict[str, str]:
         report.add("labels", problem, raw)
         return {}
     return dict(raw)
+
+
+def _openscenario(raw: Any, report: Report) -> None:
+    """The ``openscenario`` table, checked as data only (the run does not read it;
+    ``hwyeval search`` imports its template per point): problems at its key."""
+    if raw is MISSING:
+        return
+    problem = openscenario_problem(raw)
+    if problem is not None:
+        report.add(*problem)
 
 
 def _stalled(raw: Any, report: Report) -> list[StalledSpec | None]:

@@ -10,12 +10,15 @@ SCENARIO_KEYS = (
     "name", "net", "route", "ego", "stalled", "traffic", "controller", "duration_s", "step_s",
     "seed", "allow_shoulder", "criteria", "record_radius_m", "timeout_s", "friction",
     "ramp_traffic", "actors", "sumo_step_s", "replay", "sweep", "search", "xfail",
-    "storyboard", "labels",
+    "storyboard", "labels", "openscenario",
 )
 # ``search`` is read by ``hwyeval search`` (suite.search.space); run and list ignore it.
 # ``xfail`` marks one scenario as a known failure: never a default for every scenario.
 # ``labels`` names groups a scenario belongs to (a report groups runs by them).
-DEFAULT_KEYS = tuple(k for k in SCENARIO_KEYS if k not in ("name", "sweep", "search", "xfail"))
+# ``openscenario`` names the OpenSCENARIO template and parameter values a scenario was
+# imported from (data: ``hwyeval search`` imports the template per point; run ignores it).
+DEFAULT_KEYS = tuple(k for k in SCENARIO_KEYS
+                     if k not in ("name", "sweep", "search", "xfail", "openscenario"))
 REQUIRED_KEYS = ("name", "net", "ego", "controller", "duration_s", "step_s")
 OPTIONAL_SUBKEYS: dict[str, tuple[str, ...]] = {
     "ego": ("lane", "pos_m", "speed_mps", "target_speed_mps"),

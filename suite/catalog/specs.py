@@ -38,7 +38,7 @@ __all__ = ["ActorEventSpec", "ActorSpec", "ActorWhenSpec", "CRITERION_OFF", "Cat
            "ControllerSpec", "DEFAULT_SUMO_STEP_S", "EgoSpec", "MAX_EGO_HEADING_RAD",
            "MAX_EGO_LATERAL_OFFSET_M", "REPLAY_LANE_CHANGES", "REPLAY_MODES", "RampTrafficSpec",
            "ReplaySpec", "Scenario", "StalledSpec", "TrafficSpec", "XfailSpec",
-           "default_sumo_step", "sumo_step_problem"]
+           "default_sumo_step", "openscenario_problem", "sumo_step_problem"]
 
 
 
@@ -143,6 +143,43 @@ def labels_problem(v: Any) -> str | None:
             return what
         if not isinstance(x, str) or not x.strip() or len(x) > MAX_LABEL_LEN:
             return what
+    return None
+
+
+OPENSCENARIO_KEYS = ("template", "parameters", "value_sets", "ego", "ignore_constraints")
+
+
+def _parameter_table(v: Any) -> bool:
+    return isinstance(v, Mapping) and all(
+        isinstance(k, str) and k and (isinstance(x, str | bool) or rules.is_number(x))
+        for k, x in v.items())
+
+
+def openscenario_problem(v: Any) -> tuple[str, str, Any] | None:  # noqa: PLR0911
+    """None when ``v`` is an ``openscenario`` table (the template and parameter values a
+    scenario was imported from: docs/catalog.md), else (the key at fault, what was
+    expected, what was found)."""
+    if not isinstance(v, Mapping):
+        return "openscenario", ("a table { template = \"....xosc\", parameters = { Name = "
+                                "value, ... } }"), v
+    unknown = [k for k in v if k not in OPENSCENARIO_KEYS]
+    if unknown:
+        return f"openscenario.{unknown[0]}", f"only the keys {list(OPENSCENARIO_KEYS)}", \
+            unknown[0]
+    template = v.get("template")
+    if not isinstance(template, str) or not template.strip():
+        return "openscenario.template", ("an OpenSCENARIO file path (relative to the "
+                                         "catalog, or absolute)"), template
+    what = "a table of parameter name -> string, finite number or bool"
+    if not _parameter_table(v.get("parameters", {})):
+        return "openscenario.parameters", what, v.get("parameters")
+    sets = v.get("value_sets", [])
+    if not isinstance(sets, list) or not all(_parameter_table(s) for s in sets):
+        return "openscenario.value_sets", f"a list of tables, each {what}", sets
+    if not isinstance(v.get("ego", ""), str):
+        return "openscenario.ego", "the ego entity's name", v.get("ego")
+    if not isinstance(v.get("ignore_constraints", False), bool):
+        return "openscenario.ignore_constraints", "true or false", v.get("ignore_constraints")
     return None
 
 

@@ -43,13 +43,20 @@ def toml_value(value: Any) -> str:
     raise TypeError(f"no TOML form for {type(value).__name__}: {value!r}")
 
 
+# a scenario's tables written as [scenario.<key>] sub-tables (after its other keys), one
+# key a line: the sweep and search spaces and an import's openscenario table
+_SUBTABLES = ("openscenario", "sweep", "search")
+
+
 def _table(name: str, body: Mapping[str, Any]) -> list[str]:
     lines = [name]
-    sweep = body.get("sweep")
-    lines += [f"{toml_key(k)} = {toml_value(v)}" for k, v in body.items() if k != "sweep"]
-    if isinstance(sweep, Mapping):
-        lines += ["[scenario.sweep]",
-                  *(f"{toml_key(k)} = {toml_value(v)}" for k, v in sweep.items())]
+    lines += [f"{toml_key(k)} = {toml_value(v)}" for k, v in body.items()
+              if not (k in _SUBTABLES and isinstance(v, Mapping))]
+    for key in _SUBTABLES:
+        sub = body.get(key)
+        if isinstance(sub, Mapping):
+            lines += [f"[scenario.{key}]",
+                      *(f"{toml_key(k)} = {toml_value(v)}" for k, v in sub.items())]
     return lines
 
 

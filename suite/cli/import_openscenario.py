@@ -70,6 +70,10 @@ def add_openscenario_parser(fmt: argparse._SubParsersAction[argparse.ArgumentPar
                    metavar="NAME=VALUE", help="replace the declared value of the top-level "
                    "parameter NAME in every file (repeatable; a variation's sets too; with "
                    "--ignore-constraints to go beyond its constraints)")
+    c.add_argument("--search-ranges", action="store_true",
+                   help="a variation file's logical scenario searches each DistributionRange "
+                   "between its ends (a range) rather than its steps (choices; the default; "
+                   "hwyeval search, docs/openscenario.md)")
     c.set_defaults(func=cmd_import_openscenario)
 
 
@@ -82,7 +86,8 @@ def cmd_import_openscenario(args: argparse.Namespace) -> int:
     try:
         options = ImportOptions(ego=args.ego, ignore_constraints=args.ignore_constraints,
                                 duration_s=args.duration_s, variants=args.variants,
-                                r157=args.r157, parameters=tuple(args.param))
+                                r157=args.r157, parameters=tuple(args.param),
+                                search_ranges=args.search_ranges)
     except ValueError as exc:
         raise UsageError(f"--param: {exc}") from None
     try:

@@ -5,8 +5,11 @@ concrete ``[[scenario]]`` per failure mode of each family, its shrunk point
 (:mod:`suite.search.shrink`), named ``<family>__t<trial>`` after the trial it was shrunk
 from, with the family's ``[defaults]`` merged in (self-contained: copy it into a
 regression catalog as it is) and no search table; a comment above each names its mode,
-robustness and the run it reproduces. A ``net`` given as a path is rewritten relative to
-the directory of found.toml. ``search.csv``'s rows: :mod:`reports.record.search`.
+robustness and the run it reproduces. A ``net`` (and a ``storyboard``) given as a path is
+rewritten relative to the directory of found.toml. A logical scenario's case is the
+scenario its point's import made (``openscenario/<run>/point.json``: its net and
+storyboard there, its ``openscenario`` table with the point's parameter values).
+``search.csv``'s rows: :mod:`reports.record.search`.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from reports.record.codec import write_text_atomic
 from reports.record.search import SEARCH_CSV, SearchRow, write_search_csv
 from suite.catalog.nets import bundled_nets
 from suite.catalog.toml_write import toml_key, toml_value
+from suite.search.logical import point_file
 from suite.search.loop import FamilyResult, TrialResult
 from suite.search.shrink import Shrunk
 from suite.search.space import Family, point_entry, trial_name
@@ -36,10 +40,26 @@ def found_name(case: Shrunk) -> str:
 
 def _relative_net(entry: dict[str, Any], family: Family, dest_dir: Path) -> None:
     net = entry.get("net")
-    if not isinstance(net, str) or net in bundled_nets():
-        return
-    target = (family.catalog_path.parent / net).resolve()
-    entry["net"] = os.path.relpath(target, dest_dir.resolve())
+    if isinstance(net, str) and net not in bundled_nets():
+        target = (family.catalog_path.parent / net).resolve()
+        entry["net"] = os.path.relpath(target, dest_dir.resolve())
+    story = entry.get("storyboard")
+    if isinstance(story, str) and story:
+        target = (family.catalog_path.parent / story).resolve()
+        entry["storyboard"] = os.path.relpath(target, dest_dir.resolve())
+
+
+def _case_entry(family: Family, case: Shrunk) -> dict[str, Any]:
+    """The case's concrete scenario table: the point's (a logical scenario's: as its
+    import wrote it, when its point.json is there)."""
+    name = found_name(case)
+    if family.logical is not None:
+        path = point_file(family.logical, case.result.run)
+        if path is not None and path.is_file():
+            entry: dict[str, Any] = dict(json.loads(path.read_text(encoding="utf-8"))["scenario"])
+            entry["name"] = name
+            return entry
+    return point_entry(family, case.result.values, name)
 
 
 def found_text(cases: Sequence[tuple[Family, Shrunk]], dest_dir: Path) -> str:
@@ -47,7 +67,7 @@ def found_text(cases: Sequence[tuple[Family, Shrunk]], dest_dir: Path) -> str:
              "# shrunk toward its family's nominal point (hwyeval run this file to replay).",
              ""]
     for family, case in cases:
-        entry = point_entry(family, case.result.values, found_name(case))
+        entry = _case_entry(family, case)
         _relative_net(entry, family, dest_dir)
         res = case.result
         lines.append(f"# {family.name}: mode {case.mode}, robustness {res.robustness!r} "

@@ -206,11 +206,16 @@ def search_into(options: SearchOptions, cat: SearchCatalog, plugins: Plugins, wh
                 *, sampler: str, seed: int, shrink: bool) -> SearchOutput:
     """Run every family's search into ``where.out`` (prepared), then shrink (``shrink``)
     and write found.toml and search.csv."""
+    from dataclasses import replace
+
     from suite.search.found import write_found, write_search
+    from suite.search.logical import TRIALS_DIR
     from suite.search.loop import open_storage
 
     t0 = time.perf_counter()
     out = where.out
+    # a logical scenario's points are imported under the output (suite.search.logical)
+    cat = replace(cat, families=tuple(f.at(out / TRIALS_DIR) for f in cat.families))
     (out / SETTINGS_JSON).write_text(json.dumps(_settings(options, sampler, seed), indent=1))
     storage, journal = open_storage(str(out / JOURNAL))
     runs = _Runs(out, Path(options.catalog).stem, options.settings, plugins, where.executor,

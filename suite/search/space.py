@@ -25,6 +25,13 @@ and ``max`` are finite numbers (integers with ``int = true``) with ``min < max``
 catalog accepts each end of every range (and every choice) with the other keys at their
 nominal values. ``hwyeval run`` and ``list`` ignore the search table: they run the
 nominal scenario.
+
+A family with keys under ``openscenario`` is a *logical scenario*
+(:mod:`suite.search.logical`): each point is made by importing its OpenSCENARIO template
+with the point's parameter values (a point the template's constraints refuse is
+refused); its range ends are not imported when the catalog is read (the template's
+constraints span several parameters: an end is refused in some combinations, not in
+others), the template and its declarations are checked instead.
 """
 
 from __future__ import annotations
@@ -34,7 +41,7 @@ import json
 import math
 import tomllib
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +51,7 @@ from suite.catalog.frozen import FrozenMap, freeze, thaw
 from suite.catalog.loader import load_catalog_doc, merge_scenario
 from suite.catalog.rules import MAX_NAME_LEN
 from suite.catalog.sweep import overlapping, path_target, set_path
+from suite.search.logical import Logical, import_point, is_logical_path, logical_issues
 
 __all__ = ["FLOAT", "INT", "CHOICE", "Family", "Param", "Refused", "SearchCatalog",
            "build_point", "load_search_catalog", "trial_name"]
@@ -120,7 +128,8 @@ class Param:
 class Family:
     """A scenario with a search table. ``base``: the merged scenario (defaults in,
     no sweep or search), frozen; ``nominal``: its value at each param's path (None where
-    unset); ``where``: ``scenario[i]`` in the catalog."""
+    unset); ``where``: ``scenario[i]`` in the catalog; ``logical``: set for a logical
+    scenario (its points imported from its template, :mod:`suite.search.logical`)."""
 
     name: str
     where: str
@@ -128,6 +137,7 @@ class Family:
     base: Mapping[str, Any]
     params: tuple[Param, ...]
     nominal: tuple[Any, ...]
+    logical: Logical | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         if not self.params or len(self.params) != len(self.nominal):
@@ -136,6 +146,13 @@ class Family:
     @property
     def paths(self) -> tuple[str, ...]:
         return tuple(p.path for p in self.params)
+
+    def at(self, work_dir: Path) -> Family:
+        """This family with its points imported under ``work_dir`` (a logical scenario;
+        any other family is returned as it is)."""
+        if self.logical is None:
+            return self
+        return replace(self, logical=replace(self.logical, work_dir=work_dir))
 
     def distance(self, values: Sequence[Any]) -> float:
         """Euclidean distance [-] of ``values`` to the nominal point in range units
@@ -179,8 +196,20 @@ def point_entry(family: Family, values: Sequence[Any], name: str) -> dict[str, A
 def build_point(family: Family, values: Sequence[Any], name: str) -> Scenario | Refused:
     """The scenario of a point, checked and built by the catalog loader, named ``name``
     (its family the family's name, its ``sweep_values`` the point), or why the catalog
-    refuses it."""
+    refuses it. A logical scenario's point is imported from its template first, into
+    ``<work_dir>/<name>`` (:func:`suite.search.logical.import_point`): a point the
+    template refuses is refused with the importer's reason."""
+    return _build(family, values, name, imported=family.logical is not None)
+
+
+def _build(family: Family, values: Sequence[Any], name: str, *, imported: bool
+           ) -> Scenario | Refused:
     entry = point_entry(family, values, family.name)
+    if imported and family.logical is not None:
+        made = import_point(family.logical, entry, name, family.catalog_path)
+        if isinstance(made, str):
+            return Refused(made)
+        entry = made
     try:
         catalog = load_catalog_doc(family.catalog_path, {"scenario": [entry]})
     except CatalogError as exc:
@@ -267,10 +296,12 @@ def _family(path: Path, where: str, name: str, merged: dict[str, Any], entry: di
         param = _param(key, spec, loc, bad)
         if param is not None:
             params.append(param)
+    logical, problems = logical_issues(path, where, name, merged, items)
+    issues.extend(problems)
     if len(issues) > n_before:
         return None
     nominal = tuple(_value_at(merged, p.path) for p in params)
-    return Family(name, where, path, freeze(merged), tuple(params), nominal)
+    return Family(name, where, path, freeze(merged), tuple(params), nominal, logical)
 
 
 def _number(v: Any) -> bool:
@@ -342,13 +373,16 @@ def _ends(p: Param) -> list[Any]:
 
 def _endpoint_issues(fam: Family) -> list[CatalogIssue]:
     """A problem for every range end (or choice) the catalog refuses with the other
-    keys at their nominal values."""
+    keys at their nominal values. A logical scenario's parameters are not imported here
+    (module doc); its other keys are checked on the catalog's own (nominal) import."""
     out: list[CatalogIssue] = []
     for i, p in enumerate(fam.params):
+        if fam.logical is not None and is_logical_path(p.path):
+            continue
         for end in _ends(p):
             values = list(fam.nominal)
             values[i] = end
-            built = build_point(fam, values, fam.name)
+            built = _build(fam, values, fam.name, imported=False)
             if isinstance(built, Refused):
                 out.append(CatalogIssue(
                     f"{fam.where}.search.{json.dumps(p.path)}",

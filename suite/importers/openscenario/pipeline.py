@@ -8,10 +8,14 @@ scenario table (:mod:`.catalog_out`). A variation file (``ParameterValueDistribu
 imports its template with the declared values, counts its parameter sets (those that
 violate the template's constraints are counted apart) and writes them to
 ``<stem>.sets.json``; ``variants`` > 0 also imports that many of the valid sets (evenly
-spread) as scenarios of their own. Before anything is written the inputs and the
-output folder are checked (:mod:`.plan`, :mod:`suite.importers.common.out_guard`); a
-file's outputs are staged and moved into the folder once all of them are
-(:mod:`suite.importers.common.staging`), as ``import commonroad`` does.
+spread) as scenarios of their own. The variation file's own scenario is a *logical
+scenario*: it names its template and the varied parameters' values (``openscenario``)
+and carries their space as a ``[scenario.search]`` table (:mod:`.logical`), which
+``hwyeval search`` falsifies by importing the template per point. Before anything is
+written the inputs and the output folder are checked (:mod:`.plan`,
+:mod:`suite.importers.common.out_guard`); a file's outputs are staged and moved into the
+folder once all of them are (:mod:`suite.importers.common.staging`), as ``import
+commonroad`` does.
 """
 
 from __future__ import annotations
@@ -34,12 +38,17 @@ from suite.importers.openscenario.conditions_xml import read_trigger
 from suite.importers.openscenario.entities import read_entities
 from suite.importers.openscenario.errors import OscImportError, fail_at
 from suite.importers.openscenario.lane_bands import read_bands
+from suite.importers.openscenario.logical import logical_tables, set_table
 from suite.importers.openscenario.params import declare, resolve_tree
 from suite.importers.openscenario.plan import check_plan, road_file
 from suite.importers.openscenario.positions import Placer, nearest_lane
 from suite.importers.openscenario.road import LaneMap, build_road
 from suite.importers.openscenario.story import read_init, read_stories
-from suite.importers.openscenario.variation import parameter_sets, template_of
+from suite.importers.openscenario.variation import (
+    distribution_space,
+    parameter_sets,
+    template_of,
+)
 from suite.importers.openscenario.vocabulary import check_vocabulary
 from suite.importers.openscenario.xml_safe import read_xml
 from suite.road.network import RoadNetwork, RoadNetworkError
@@ -68,7 +77,9 @@ class ImportOptions:
     with its Annex 5 section (:func:`r157_section`); ``parameters``: (name, value)
     pairs that replace the declared values of the files' top-level parameters (a
     variation's parameter set included: the command line wins), each of them declared
-    by every file imported."""
+    by every file imported; ``search_ranges``: a variation file's deterministic
+    ``DistributionRange`` becomes a range of its logical scenario's search table rather
+    than its steps as choices (:mod:`.logical`)."""
 
     ego: str | None = None
     ignore_constraints: bool = False
@@ -76,6 +87,7 @@ class ImportOptions:
     variants: int = 0
     r157: bool = False
     parameters: tuple[tuple[str, str], ...] = ()
+    search_ranges: bool = False
 
     def __post_init__(self) -> None:
         if self.duration_s is not None and not (math.isfinite(self.duration_s)
@@ -264,21 +276,22 @@ def _front(p: sb.RoutePosition, e: sb.Entity) -> sb.RoutePosition:
 
 
 def _write(built: _Built, out_dir: Path, stem: str, source: Path,
-           extra_notes: Sequence[str] = ()) -> str:
+           extra_notes: Sequence[str] = (), extra: Mapping[str, Any] | None = None) -> str:
     name = catalog_out.scenario_name(stem)
     story_file = f"{stem}.story.json"
     catalog_out.write_atomic(out_dir / story_file, sb.story_to_json(built.story))
-    table = {"name": name, **built.table, "storyboard": story_file}
+    table = {"name": name, **built.table, "storyboard": story_file, **(extra or {})}
     catalog_out.write_fragment(out_dir, stem, name, table, [*built.notes, *extra_notes],
                                source.name)
     return name
 
 
-def _import_variation(source: Path, root: Any, out_dir: Path,
-                      options: ImportOptions) -> FileResult:
+def _import_variation(source: Path, root: Any, out_dir: Path, options: ImportOptions,
+                      catalog_dir: Path) -> FileResult:
     t0 = time.perf_counter()
     template = template_of(root, source)
     sets = parameter_sets(root)
+    axes = distribution_space(root)
     troot = read_xml(template).getroot()
     valid, invalid = [], 0
     for s in sets:
@@ -290,10 +303,13 @@ def _import_variation(source: Path, root: Any, out_dir: Path,
     stem = out_guard.output_stem(source, catalog_out.OUTPUTS)
     note = (f"{len(sets)} parameter sets, {invalid} violate the template's constraints "
             f"({stem}.sets.json)")
-    names = [_write(build_scenario(template, out_dir, options), out_dir, stem, template,
-                    [note])]
+    built = build_scenario(template, out_dir, options)
+    logical, unsearched = logical_tables(
+        template, troot, axes, catalog_dir, fixed=options.parameters, ego=options.ego,
+        ignore_constraints=options.ignore_constraints, search_ranges=options.search_ranges)
+    names = [_write(built, out_dir, stem, template, [note, *unsearched], logical)]
     n = min(options.variants, len(valid))
-    notes = [note]
+    notes = [note, *unsearched]
     imported: list[dict[str, Any]] = []
     for k in range(n):
         idx = (k * len(valid)) // n
@@ -303,7 +319,10 @@ def _import_variation(source: Path, root: Any, out_dir: Path,
             notes.append(f"parameter set {idx} not imported: {exc}")
             continue
         names.append(_write(built, out_dir, f"{stem}__set{idx}", template,
-                            [f"parameter set {idx}: {valid[idx]}"]))
+                            [f"parameter set {idx}: {valid[idx]}"],
+                            set_table(template, troot, valid[idx], catalog_dir,
+                                      fixed=options.parameters, ego=options.ego,
+                                      ignore_constraints=options.ignore_constraints)))
         imported.append({"set": idx, "scenario": names[-1], "values": valid[idx]})
     # the counts and the sets imported, not every valid set: the ALKS files expand to
     # up to 40 000 of them (12 MB); the variation file itself lists them all
@@ -320,16 +339,19 @@ def import_file(source: Path, out_dir: Path, options: ImportOptions) -> FileResu
     (:mod:`suite.importers.common.staging`; the folder is not checked here:
     :func:`import_files` does)."""
     with staging.staged(out_dir) as stage:
-        result = _import_file(source, stage, options)
+        result = _import_file(source, stage, options, out_dir)
         staging.commit(stage, out_dir)
     return result
 
 
-def _import_file(source: Path, out_dir: Path, options: ImportOptions) -> FileResult:
+def _import_file(source: Path, out_dir: Path, options: ImportOptions,
+                 catalog_dir: Path) -> FileResult:
+    """``out_dir``: where the outputs are written (the staging folder); ``catalog_dir``:
+    where they end up (a logical scenario's template path is relative to it)."""
     t0 = time.perf_counter()
     root = read_xml(source).getroot()
     if root.find("ParameterValueDistribution") is not None:
-        return _import_variation(source, root, out_dir, options)
+        return _import_variation(source, root, out_dir, options, catalog_dir)
     stem = out_guard.output_stem(source, catalog_out.OUTPUTS)
     built = build_scenario(source, out_dir, options)
     return FileResult(source, (_write(built, out_dir, stem, source),),

@@ -11,12 +11,17 @@
   ``Histogram`` and ``ProbabilityDistributionSet``).
 
 Values are kept as the strings the template's declarations read.
+
+:func:`distribution_space` gives the same file as its *space* (one :class:`Axis` per
+distribution) rather than its sets: what ``hwyeval search`` searches for a logical
+scenario (:mod:`.logical`).
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +30,7 @@ import numpy as np
 from suite.importers.openscenario.errors import fail_at
 from suite.importers.openscenario.position_xml import num
 
-__all__ = ["MAX_SETS", "parameter_sets", "template_of"]
+__all__ = ["MAX_SETS", "Axis", "distribution_space", "parameter_sets", "template_of"]
 
 MAX_SETS = 10_000_000  # a deterministic product larger than this is refused
 
@@ -147,3 +152,108 @@ def parameter_sets(root: Any) -> list[dict[str, str]]:
     if len(kids) != 1 or kids[0].tag not in ("Deterministic", "Stochastic"):
         raise fail_at(pvd, "one Deterministic or Stochastic distribution is required")
     return _deterministic(kids[0]) if kids[0].tag == "Deterministic" else _stochastic(kids[0])
+
+
+# ------------------------------------------------------------------ the space
+VALUES, GRID, RANGE, SETS = "values", "grid", "range", "sets"
+SPREAD_SD = 3.0  # a normal (log-normal) distribution without a Range: mean +- 3 sd
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One distribution of a variation file, as a space. ``kind``:
+
+    * ``values``: ``values`` the file's values of one parameter (a ``DistributionSet``,
+      a ``ProbabilityDistributionSet``);
+    * ``grid``: a ``DistributionRange``: ``values`` its steps, ``low``..``high`` its
+      range;
+    * ``range``: a stochastic distribution's range ``low``..``high`` (``integer``: a
+      Poisson count);
+    * ``sets``: a ``ValueSetDistribution``: ``sets`` its parameter value sets over
+      ``names``."""
+
+    kind: str
+    names: tuple[str, ...]
+    values: tuple[str, ...] = ()
+    low: float = math.nan
+    high: float = math.nan
+    sets: tuple[dict[str, str], ...] = ()
+    integer: bool = False
+
+
+def _stochastic_axis(name: str, el: Any) -> Axis:
+    """The range a stochastic distribution draws from: its ``Range`` (uniform, normal and
+    log-normal clipped to it, Poisson), a normal's mean +- 3 sd (a log-normal's exp of
+    it) without one, a Poisson's mean +- 3 sqrt(mean) (>= 0) without one, a histogram's
+    lowest to highest bin; a probability set's values."""
+    tag = str(el.tag)
+    rng = el.find("Range")
+    if tag == "ProbabilityDistributionSet":
+        return Axis(VALUES, (name,), tuple(str(e.get("value", ""))
+                                           for e in el.iterfind("Element")))
+    if tag == "Histogram":
+        bins = [b.find("Range") for b in el.iterfind("Bin")]
+        if not bins or any(b is None for b in bins):
+            raise fail_at(el, "a Histogram needs Bins with a Range each")
+        return Axis(RANGE, (name,), low=min(num(b, "lowerLimit") for b in bins),
+                    high=max(num(b, "upperLimit") for b in bins))
+    if tag not in ("UniformDistribution", "NormalDistribution", "LogNormalDistribution",
+                   "PoissonDistribution"):
+        raise fail_at(el, f"distribution {tag} is not supported")
+    integer = tag == "PoissonDistribution"
+    if rng is not None:
+        return Axis(RANGE, (name,), low=num(rng, "lowerLimit"), high=num(rng, "upperLimit"),
+                    integer=integer)
+    if tag == "UniformDistribution":
+        raise fail_at(el, "a UniformDistribution needs a Range")
+    mean = num(el, "expectedValue")
+    if integer:
+        spread = SPREAD_SD * math.sqrt(max(mean, 0.0))
+        return Axis(RANGE, (name,), low=max(0.0, math.floor(mean - spread)),
+                    high=math.ceil(mean + spread), integer=True)
+    sd = math.sqrt(num(el, "variance"))
+    lo, hi = mean - SPREAD_SD * sd, mean + SPREAD_SD * sd
+    if tag == "LogNormalDistribution":
+        lo, hi = math.exp(lo), math.exp(hi)
+    return Axis(RANGE, (name,), low=lo, high=hi)
+
+
+def _deterministic_axes(el: Any) -> list[Axis]:
+    axes: list[Axis] = []
+    for kid in el:
+        if not isinstance(kid.tag, str):
+            continue
+        if kid.tag == "DeterministicSingleParameterDistribution":
+            names, rows = _single(kid)
+            dist = next(k for k in kid if isinstance(k.tag, str))
+            values = tuple(r[0] for r in rows)
+            if dist.tag == "DistributionRange":
+                rng = dist.find("Range")
+                axes.append(Axis(GRID, tuple(names), values, num(rng, "lowerLimit"),
+                                 num(rng, "upperLimit")))
+            else:
+                axes.append(Axis(VALUES, tuple(names), values))
+        elif kid.tag == "DeterministicMultiParameterDistribution":
+            names, rows = _multi(kid)
+            axes.append(Axis(SETS, tuple(names), sets=tuple(
+                dict(zip(names, r, strict=True)) for r in rows)))
+        else:
+            raise fail_at(kid, f"{kid.tag} is not supported")
+    return axes
+
+
+def distribution_space(root: Any) -> list[Axis]:
+    """The variation file's space: one :class:`Axis` per distribution, in file order."""
+    pvd = root.find("ParameterValueDistribution")
+    kids = [k for k in pvd if isinstance(k.tag, str) and k.tag != "ScenarioFile"]
+    if len(kids) != 1 or kids[0].tag not in ("Deterministic", "Stochastic"):
+        raise fail_at(pvd, "one Deterministic or Stochastic distribution is required")
+    if kids[0].tag == "Deterministic":
+        return _deterministic_axes(kids[0])
+    axes = []
+    for dist in kids[0].iterfind("StochasticDistribution"):
+        kid = next((k for k in dist if isinstance(k.tag, str)), None)
+        if kid is None:
+            raise fail_at(dist, "a StochasticDistribution needs a distribution")
+        axes.append(_stochastic_axis(str(dist.get("parameterName", "")), kid))
+    return axes
