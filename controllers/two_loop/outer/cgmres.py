@@ -23,7 +23,7 @@ the iteration count, no data-dependent loop length. Afterwards:
   behaviour, real-net and stress catalogs E stays above 5 for 0.36 s at most otherwise.
 
 Initialisation: growing horizon T(t) = T_f (1 - exp(-rate (t - t_init))); at
-t_init the horizon is zero and :func:`controllers.two_loop.outer.ocp.stage_init` is exact,
+t_init the horizon is zero and :func:`controllers.two_loop.outer.ocp_start.stage_init` is exact,
 so E(t_init) is at round-off level. The horizon's growth enters the continuation
 through the F_t forward difference, like the obstacles' motion.
 
@@ -58,12 +58,7 @@ from controllers.two_loop.outer.cgmres_kernel import (
     solver_config,
     work_size,
 )
-from controllers.two_loop.outer.ocp import (
-    activate_slot,
-    deactivate_slot,
-    ocp_residual,
-    stage_init,
-)
+from controllers.two_loop.outer.ocp import ocp_residual
 from controllers.two_loop.outer.ocp_layout import (
     _P_CY,
     _P_CYR,
@@ -77,6 +72,7 @@ from controllers.two_loop.outer.ocp_layout import (
     stage_fractions,
     stage_width,
 )
+from controllers.two_loop.outer.ocp_start import activate_slot, deactivate_slot, stage_init
 from controllers.two_loop.outer.params import CgmresParams
 from controllers.two_loop.outer.protocol import OuterPlan
 from controllers.two_loop.outer.slots import ObstacleSlots

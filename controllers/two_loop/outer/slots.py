@@ -27,8 +27,8 @@ import math
 import numpy as np
 
 from controllers.protocol import Obstacles
-from controllers.two_loop.outer.ocp import activate_slot, deactivate_slot
 from controllers.two_loop.outer.ocp_layout import obstacle_table, stage_width
+from controllers.two_loop.outer.ocp_start import activate_slot, deactivate_slot
 from controllers.two_loop.outer.params import CgmresParams
 
 __all__ = ["ObstacleSlots"]

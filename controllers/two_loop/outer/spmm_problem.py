@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from controllers.path.frenet import FrenetPath
-from controllers.two_loop.outer.ocp import ocp_objective, ocp_residual, stage_init
+from controllers.two_loop.outer.ocp import ocp_objective, ocp_residual
 from controllers.two_loop.outer.ocp_layout import pack_params, stage_fractions, stage_width
+from controllers.two_loop.outer.ocp_start import stage_init
 from controllers.two_loop.outer.params import OcpParams
 
 __all__ = ["SpmmProblem"]
