@@ -79,15 +79,6 @@ def _after_jump(ctx: RunContext, rows: IntColumn, vid: str, t: float) -> bool:
 # ------------------------------------------------------------------ contacts
 
 
-    steps = ctx.record.trace.step
-    order = np.argsort(steps, kind="stable")
-    pos = np.clip(np.searchsorted(steps[order], nb.step), 0, len(order) - 1)
-    matched = order[pos]
-    ok = steps[matched] == nb.step
-    rows[ok] = matched[ok]
-    return rows
-
-
 def _swept(ctx: RunContext, rows: IntColumn, boxes: np.ndarray, usable: BoolColumn,
            sampled: BoolColumn) -> BoolColumn:
     """Per neighbour row k (N,) at trace row r: the boxes touch between rows r-1 and r
