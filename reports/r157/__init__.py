@@ -79,7 +79,7 @@ def rows_csv(rows: Sequence[PackRow]) -> str:
         acc = r.acceptance
         w.writerow([r.section, r.scenario, r.controller, _num(r.ego_speed_kmh),
                     "met" if acc.met else "not met", "; ".join(acc.reasons),
-                    *_outcome_fields(r.system)[:4], _num(r.system.gap_shortfall_s),
+                    *_outcome_fields(r.system), _num(r.system.gap_shortfall_s),
                     *_outcome_fields(r.reference)])
     return buf.getvalue()
 

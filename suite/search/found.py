@@ -38,15 +38,16 @@ def found_name(case: Shrunk) -> str:
     return trial_name(case.origin.family, case.origin.trial)
 
 
-def _relative_net(entry: dict[str, Any], family: Family, dest_dir: Path) -> None:
-    net = entry.get("net")
-    if isinstance(net, str) and net not in bundled_nets():
-        target = (family.catalog_path.parent / net).resolve()
-        entry["net"] = os.path.relpath(target, dest_dir.resolve())
-    story = entry.get("storyboard")
-    if isinstance(story, str) and story:
-        target = (family.catalog_path.parent / story).resolve()
-        entry["storyboard"] = os.path.relpath(target, dest_dir.resolve())
+def _relative_paths(entry: dict[str, Any], family: Family, dest_dir: Path) -> None:
+    """The entry's ``net`` (a path, not a bundled net's name) and ``storyboard``,
+    relative to the catalog, rewritten relative to ``dest_dir``."""
+    for key in ("net", "storyboard"):
+        value = entry.get(key)
+        if not isinstance(value, str) or not value or (key == "net"
+                                                      and value in bundled_nets()):
+            continue
+        target = (family.catalog_path.parent / value).resolve()
+        entry[key] = os.path.relpath(target, dest_dir.resolve())
 
 
 def _case_entry(family: Family, case: Shrunk) -> dict[str, Any]:
@@ -68,7 +69,7 @@ def found_text(cases: Sequence[tuple[Family, Shrunk]], dest_dir: Path) -> str:
              ""]
     for family, case in cases:
         entry = _case_entry(family, case)
-        _relative_net(entry, family, dest_dir)
+        _relative_paths(entry, family, dest_dir)
         res = case.result
         lines.append(f"# {family.name}: mode {case.mode}, robustness {res.robustness!r} "
                      f"({res.criterion}); run {res.run}; from trial {case.origin.trial} "

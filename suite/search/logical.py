@@ -182,14 +182,12 @@ def import_point(logical: Logical, entry: Mapping[str, Any], run: str,
         return _refusal(exc)
     (folder / STORY_JSON).write_text(sb.story_to_json(built.story), encoding="utf-8")
     base = catalog_path.parent.resolve()
-    out = dict(entry)
-    out.update(built.table)
-    out["net"] = Path(os.path.relpath((folder / str(built.table["net"])).resolve(),
-                                      base)).as_posix()
-    out["storyboard"] = Path(os.path.relpath((folder / STORY_JSON).resolve(), base)).as_posix()
+    net, story = (folder / str(built.table["net"])).resolve(), (folder / STORY_JSON).resolve()
+    out = {**entry, **built.table,
+           "net": Path(os.path.relpath(net, base)).as_posix(),
+           "storyboard": Path(os.path.relpath(story, base)).as_posix()}
     point = {"run": run, "template": str(logical.template), "parameters": overrides,
              "notes": list(built.notes),
-             "scenario": {**out, "net": str((folder / str(built.table["net"])).resolve()),
-                          "storyboard": str((folder / STORY_JSON).resolve())}}
+             "scenario": {**out, "net": str(net), "storyboard": str(story)}}
     (folder / POINT_JSON).write_text(json.dumps(point, indent=1) + "\n", encoding="utf-8")
     return out

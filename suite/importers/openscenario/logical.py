@@ -28,7 +28,6 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from suite.importers.openscenario.errors import OscImportError
 from suite.importers.openscenario.params import declare
 from suite.importers.openscenario.variation import GRID, RANGE, SETS, Axis
 
@@ -197,11 +196,3 @@ def set_table(template: Path, troot: Any, values: Mapping[str, str], catalog_dir
     osc[PARAMETERS] = {n: catalog_value(v, types.get(n)) for n, v in merged.items()}
     return {OSC_KEY: osc}
 
-
-def check_declared(troot: Any, names: Sequence[str], source: str) -> None:
-    """Every name is a top-level parameter of the template (an OscImportError otherwise)."""
-    types = declared_types(troot)
-    missing = sorted(n for n in names if n not in types)
-    if missing:
-        raise OscImportError(source, "ParameterDeclarations",
-                             f"parameter(s) {missing} are set but not declared")
