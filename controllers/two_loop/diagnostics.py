@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from controllers.protocol import StepDiagnostics
+from controllers.two_loop.threat import BrakeSource
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,3 +82,29 @@ class TwoLoopDiagnostics(StepDiagnostics):
     threat_need_mps2: float = math.nan
     brake_floor_mps2: float = math.nan
     brake_source: int = 0
+
+
+class StepReferences(NamedTuple):
+    """This period's lateral reference [m], its weight C_y and the lane corridor [m]
+    (these three are named tuples, not frozen dataclasses: one of each is made a period)."""
+
+    y_ref_m: float
+    c_y: float
+    y_lo_m: float
+    y_hi_m: float
+
+
+class StepTimes(NamedTuple):
+    """perf_counter stamps [s]: the step's start, the inner loop's start, the end."""
+
+    outer0: float
+    inner0: float
+    end: float
+
+
+class StepBraking(NamedTuple):
+    """The threat floor's need and floor [m/s²] and the stage that set the braking."""
+
+    need_mps2: float
+    floor_mps2: float
+    source: BrakeSource
