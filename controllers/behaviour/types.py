@@ -343,11 +343,15 @@ class Obstacles:
         box-sum half length where known); ``self`` when none does."""
         a, b = self.semi_a_m.copy(), self.semi_b_m.copy()
         known = self.half_length_m.shape[0] == self.count
+        narrowed = False
         for k in range(self.count):
+            a_k, b_k = float(a[k]), float(b[k])
             a[k], b[k] = leave_ego_outside(
-                ego_s_m - float(self.s_m[k]), ego_lat_m - float(self.y_m[k]), float(a[k]),
-                float(b[k]), float(self.half_length_m[k]) if known else 0.0)
-        if np.array_equal(a, self.semi_a_m) and np.array_equal(b, self.semi_b_m):
+                ego_s_m - float(self.s_m[k]), ego_lat_m - float(self.y_m[k]), a_k, b_k,
+                float(self.half_length_m[k]) if known else 0.0)
+            # != as np.array_equal compared: a NaN semi-axis counts as changed
+            narrowed = narrowed or a[k] != a_k or b[k] != b_k
+        if not narrowed:
             return self
         return replace(self, semi_a_m=a, semi_b_m=b)
 

@@ -38,6 +38,7 @@ scene.
 
 from __future__ import annotations
 
+import bisect
 import math
 import os
 from pathlib import Path
@@ -63,6 +64,7 @@ from suite.world.actors import ActorScript
 from suite.world.multirate import MultiRate, extrapolate_traffic, headings
 from suite.world.protocol import EgoPose, Scene, WorldEgo, WorldSummary
 from suite.world.replay import HandoverEgo, ReplayAgents
+from suite.world.route_position import route_position_m
 from suite.world.routes import EGO_ID, STALLED_PREFIX, RouteFile
 from suite.world.ssm import parse_ssm
 from suite.world.storyboard import StoryRunner
@@ -114,7 +116,7 @@ class SumoWorld:
         self._collisions: list[SumoCollision] = []
         self._stalled: tuple[StalledVehicle, ...] = ()
         # lane id -> (cumulative shape length scaled to the lane's length, segment headings)
-        self._lane_geometry: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._lane_geometry: dict[str, tuple[list[float], list[float]]] = {}
         self.rate = MultiRate(scenario.steps_per_world_step if externally_driven else 1,
                               float(scenario.step_s))
         self._k = 0  # control steps since the start
@@ -206,8 +208,7 @@ class SumoWorld:
     def _route_pos(self, ls: Any, vid: str) -> float:
         """A vehicle's front bumper route position [m]: its edge's start on the route plus
         its lane position; NaN on an edge off the route or inside a junction."""
-        start = self._edge_starts_m.get(str(ls.vehicle.getRoadID(vid)))
-        return math.nan if start is None else start + float(ls.vehicle.getLanePosition(vid))
+        return route_position_m(ls.vehicle, vid, self._edge_starts_m)
 
     def close(self) -> WorldSummary:
         if self._story is not None:
@@ -354,15 +355,15 @@ class SumoWorld:
             if len(shape) < 2:
                 return math.nan
             seg = np.diff(shape, axis=0)
-            cum = arc_lengths_m(shape)
+            arc = arc_lengths_m(shape)
             length = float(self._ls.lane.getLength(lane_id))
-            scale = length / cum[-1] if cum[-1] > 0 else 1.0
-            geom = (cum * scale, np.arctan2(seg[:, 1], seg[:, 0]))
+            scale = length / arc[-1] if arc[-1] > 0 else 1.0
+            # lists and bisect: numpy's dispatch costs more than the search on a scalar
+            geom = ((arc * scale).tolist(), np.arctan2(seg[:, 1], seg[:, 0]).tolist())
             self._lane_geometry[lane_id] = geom
         cum, heading = geom
-        # min/max, not np.clip: the ufunc machinery costs more than the search on a scalar
-        k = min(max(int(np.searchsorted(cum, pos_m, side="right")) - 1, 0), len(heading) - 1)
-        return float(heading[k])
+        k = min(max(bisect.bisect_right(cum, pos_m) - 1, 0), len(heading) - 1)
+        return heading[k]
 
     def _traffic(self) -> Traffic:
         """Vehicles within the sensing radius of the ego (the ego excluded)."""

@@ -110,7 +110,7 @@ class ObstacleSlots:
         k = self.n_slots
         n_in = min(obstacles.count, k)
         used = np.zeros(k, dtype=bool)
-        assign = -np.ones(n_in, dtype=np.int64)
+        assign = np.full(n_in, -1, dtype=np.int64)
         ids = obstacles.vehicle_ids
         for q in range(n_in):
             vid = ids[q] if ids else ""
