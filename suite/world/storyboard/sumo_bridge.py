@@ -24,6 +24,7 @@ from reports.geometry import math_rad_to_nav_deg, nav_deg_to_math_rad_scalar
 from suite.catalog import storyboard as sb
 from suite.road.lane_pose import lane_frame, pose_in_lane
 from suite.road.network import RoadNetwork
+from suite.world.route_position import route_position_m
 from suite.world.storyboard.engine import StoryEngine
 from suite.world.storyboard.road import SumoRoad, lane_centre_y
 from suite.world.storyboard.state import EntityView
@@ -85,10 +86,9 @@ class StoryRunner:
         v = ls.vehicle
         x, y = v.getPosition(EGO_ID)
         h = nav_deg_to_math_rad_scalar(float(v.getAngle(EGO_ID)))
-        road, lane = str(v.getRoadID(EGO_ID)), int(v.getLaneIndex(EGO_ID))
-        starts = self.network.route_edge_starts_m(self.route)
-        if road in starts:
-            pos = starts[road] + float(v.getLanePosition(EGO_ID))
+        lane = int(v.getLaneIndex(EGO_ID))
+        pos = route_position_m(v, EGO_ID, self.network.route_edge_starts_m(self.route))
+        if math.isfinite(pos):
             lateral = float(v.getLateralLanePosition(EGO_ID))
         else:
             pose = pose_in_lane(self.network, self.route, self._ego_pos,
