@@ -224,11 +224,18 @@ def _unknown_key(path: str, key: str, fields: Sequence[str]) -> ConfigError:
                        key)
 
 
-def _build(cls: type[P], table: Any, path: str) -> P:  # noqa: C901 (issue 37: still to split)
+def _build(cls: type[P], table: Any, path: str) -> P:
     """``cls`` from ``table``; every unknown key and bad value of the table and its
     sections is collected and raised together (:attr:`ConfigError.more`)."""
     if not isinstance(table, Mapping):
         raise ConfigError(path, f"a table of {cls.__name__} options", table)
+    kwargs = _table_arguments(cls, table, path)
+    return _construct(cls, kwargs, table, path)
+
+
+def _table_arguments(cls: type, table: Mapping[str, Any], path: str) -> dict[str, Any]:
+    """The keyword arguments of ``cls`` that ``table`` (at ``path``) gives, sections built
+    and leaves checked; every unknown key and bad value is raised together."""
     hints = _hints(cls)
     fields = _fields(cls)
     problems = [_unknown_key(path, key, list(fields)) for key in table if key not in fields]
@@ -236,21 +243,32 @@ def _build(cls: type[P], table: Any, path: str) -> P:  # noqa: C901 (issue 37: s
     for name, value in table.items():
         if name not in fields:
             continue
-        kind = hints[name]
-        if _is_section(kind):
-            try:
-                kwargs[name] = _build(kind, value, f"{path}.{name}")
-            except ConfigError as exc:
-                problems.extend(exc.all)
-            continue
-        problem = _leaf_problem(kind, value)
-        if problem is not None:
-            problems.append(ConfigError(f"{path}.{name}", problem, value))
-            continue
-        kwargs[name] = float(value) if kind is float else value
+        try:
+            kwargs[name] = _field_argument(hints[name], value, f"{path}.{name}")
+        except ConfigError as exc:
+            problems.extend(exc.all)
     if problems:
         raise ConfigError(problems[0].key, problems[0].expected, problems[0].got,
                           tuple(problems[1:]))
+    return kwargs
+
+
+def _field_argument(kind: Any, value: Any, path: str) -> Any:
+    """The argument for a field of type ``kind`` (at ``path``) from its table value: a
+    section built from its table, a leaf checked (a float leaf as a float); raises
+    ConfigError."""
+    if _is_section(kind):
+        return _build(kind, value, path)
+    problem = _leaf_problem(kind, value)
+    if problem is not None:
+        raise ConfigError(path, problem, value)
+    return float(value) if kind is float else value
+
+
+def _construct(cls: type[P], kwargs: dict[str, Any], table: Mapping[str, Any],
+               path: str) -> P:
+    """``cls(**kwargs)``, a ParamError or ValueError of its checks raised as a
+    ConfigError naming the field at ``path`` (the table when no field is named)."""
     try:
         return cls(**kwargs)
     except ConfigError:

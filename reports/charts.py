@@ -328,7 +328,7 @@ def _legend(p: _Plot, series: Sequence[Series], inside: bool | str) -> list[str]
     return out
 
 
-def line_chart(series: Sequence[Series], *, title: str, ylabel: str = "",  # noqa: PLR0913
+def line_chart(series: Sequence[Series], *, title: str, ylabel: str = "",  # noqa: PLR0913 - keyword display options of one chart
                xlabel: str = "t [s]", width: int = 860, height: int = 170,
                xlog: bool = False, ylog: bool = False, hlines: Iterable[Line] = (),
                vlines: Iterable[Line] = (), legend_inside: bool | str = False,

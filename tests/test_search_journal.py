@@ -55,24 +55,27 @@ def _first(ops: list[dict[str, Any]], op_code: int, key: str | None = None) -> i
     raise AssertionError(f"no operation {op_code}")
 
 
+# The damages that insert one line: kind -> (the line, how many journal lines precede
+# it); the error must name the inserted line.
+_INSERTED_LINES: dict[str, tuple[bytes, int]] = {
+    "garbage_line": (b"hello world\n", 5),
+    "not_an_operation": (b"[1, 2, 3]\n", 4),
+    "missing_fields": (b'{"op_code": 5, "worker_id": "w"}\n', 4),
+    "unknown_trial": (json.dumps({"op_code": 8, "worker_id": "w", "trial_id": 999,
+                                  "user_attr": {"batch": 0}}).encode() + b"\n", 4),
+}
+
+
 def _damaged(kind: str, data: bytes) -> tuple[bytes, int]:
     """The journal damaged as ``kind`` and the line the error must name."""
     lines = data.splitlines(keepends=True)
     ops = _ops(data)
     create, batch = _first(ops, 4), _first(ops, 8, "batch")
-    if kind == "garbage_line":
-        return b"".join(lines[:5]) + b"hello world\n" + b"".join(lines[5:]), 6
+    if kind in _INSERTED_LINES:
+        inserted, before = _INSERTED_LINES[kind]
+        return b"".join(lines[:before]) + inserted + b"".join(lines[before:]), before + 1
     if kind == "random_bytes":
         return bytes(range(256)) * 4 + b"\n", 1
-    if kind == "not_an_operation":
-        return b"".join(lines[:4]) + b"[1, 2, 3]\n" + b"".join(lines[4:]), 5
-    if kind == "missing_fields":
-        return b"".join(lines[:4]) + b'{"op_code": 5, "worker_id": "w"}\n' \
-            + b"".join(lines[4:]), 5
-    if kind == "unknown_trial":
-        bad = json.dumps({"op_code": 8, "worker_id": "w", "trial_id": 999,
-                          "user_attr": {"batch": 0}}).encode() + b"\n"
-        return b"".join(lines[:4]) + bad + b"".join(lines[4:]), 5
     if kind == "cut_inside_an_ask":  # the first trial created, one parameter set
         return b"".join(lines[:create + 1]), create
     # cut between the batch's two asks: the first trial complete, its batch never marked

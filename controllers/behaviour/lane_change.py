@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from controllers.behaviour.perception import LaneScene, Neighbour
-from controllers.behaviour.types import LaneCheck, require_numbers
+from controllers.behaviour.types import LaneCheck, LaneSlot, require_numbers
 
 
 @dataclass(frozen=True)
@@ -128,7 +128,7 @@ def decel_needed_mps2(closing_mps: float, gap_m: float, standstill_m: float) -> 
     return math.inf if room <= 0.0 else closing_mps**2 / (2.0 * room)
 
 
-def lane_change_safety(scene: LaneScene, target: int, end_s_m: float, p: LaneChangeParams,  # noqa: PLR0911
+def lane_change_safety(scene: LaneScene, target: int, end_s_m: float, p: LaneChangeParams,
                        decel_bound_mps2: float, allow_shoulder: bool
                        ) -> tuple[bool, str, LaneCheck]:
     """(safe, why, check) for moving into relative lane ``target`` for a manoeuvre that
@@ -138,33 +138,54 @@ def lane_change_safety(scene: LaneScene, target: int, end_s_m: float, p: LaneCha
     slot = scene.slot(target)
     if slot is None:
         return False, f"no {name} lane", LaneCheck.NO_LANE
-    if slot.is_shoulder and not allow_shoulder:
-        return False, f"{name} is a shoulder (not allowed)", LaneCheck.SHOULDER_NOT_ALLOWED
-    if not slot.allows_passenger and not slot.is_shoulder:
-        return False, f"{name} lane bars passenger cars", LaneCheck.BARS_PASSENGER
     kind = "shoulder" if slot.is_shoulder else "lane"
     need = end_s_m - scene.ego.s_m + p.lane_end_margin_m
-    if slot.continues_m < need:
-        return False, f"{name} {kind} ends in {slot.continues_m:.0f} m", LaneCheck.ENDS
+    problem = _slot_problem(slot, name, kind, need, allow_shoulder)
+    if problem is None:
+        problem = _traffic_problem(scene, target, end_s_m, p, decel_bound_mps2, name, kind)
+    if problem is not None:
+        return False, problem[0], problem[1]
+    return True, f"{name} {kind} free", LaneCheck.FREE
+
+
+def _slot_problem(slot: LaneSlot, name: str, kind: str, need_m: float,
+                  allow_shoulder: bool) -> tuple[str, LaneCheck] | None:
+    """(why, check) when the lane ``slot`` (the ``name`` side's ``kind``: lane or
+    shoulder) may not be entered, or does not continue ``need_m`` [m] ahead of the ego;
+    None when it may."""
+    if slot.is_shoulder and not allow_shoulder:
+        return f"{name} is a shoulder (not allowed)", LaneCheck.SHOULDER_NOT_ALLOWED
+    if not slot.allows_passenger and not slot.is_shoulder:
+        return f"{name} lane bars passenger cars", LaneCheck.BARS_PASSENGER
+    if slot.continues_m < need_m:
+        return f"{name} {kind} ends in {slot.continues_m:.0f} m", LaneCheck.ENDS
+    return None
+
+
+def _traffic_problem(scene: LaneScene, target: int, end_s_m: float, p: LaneChangeParams,
+                     bound: float, name: str, kind: str) -> tuple[str, LaneCheck] | None:
+    """(why, check) when traffic in relative lane ``target`` (the ``name`` side's
+    ``kind``: lane or shoulder) forbids a manoeuvre ending at ``end_s_m`` [m]: a stopped
+    vehicle along it, or a gap to the car ahead or behind too short for deceleration
+    ``bound`` [m/s²]; None when it is free."""
     v = scene.ego.speed_mps
     in_lane = scene.rel_lane == target
     stationary = in_lane & (np.abs(scene.fn.v_s_mps) < 0.5)
     reach = 0.5 * (scene.fn.length_m + scene.ego_length_m) + p.standstill_m
     ds = scene.ds_m
     if np.any(stationary & (ds > -reach) & (ds < end_s_m - scene.ego.s_m + reach)):
-        return (False, f"{name} {kind} blocked by a stopped vehicle",
-                LaneCheck.STOPPED_VEHICLE)
+        return f"{name} {kind} blocked by a stopped vehicle", LaneCheck.STOPPED_VEHICLE
     lead = scene.lead(target)
     if lead is not None:
-        why, check = _front_problem(lead, v, p, decel_bound_mps2)
+        why, check = _front_problem(lead, v, p, bound)
         if check is not None:
-            return False, f"{name} gap too short ({why})", check
+            return f"{name} gap too short ({why})", check
     rear = scene.follower(target)
     if rear is not None:
-        why, check = _rear_problem(rear, v, p, decel_bound_mps2)
+        why, check = _rear_problem(rear, v, p, bound)
         if check is not None:
-            return False, f"{name} gap too short ({why})", check
-    return True, f"{name} {kind} free", LaneCheck.FREE
+            return f"{name} gap too short ({why})", check
+    return None
 
 
 def _front_problem(lead: Neighbour, v: float, p: LaneChangeParams, bound: float

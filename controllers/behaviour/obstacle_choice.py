@@ -78,7 +78,7 @@ def select_obstacles(sc: LaneScene, plan: LanePlan, lead: int,
                              pol.max_obstacles)
 
 
-def plan_ellipses(sc: LaneScene, order: IntpArray, plan: LanePlan, side: int,  # noqa: PLR0913
+def plan_ellipses(sc: LaneScene, order: IntpArray, plan: LanePlan, side: int,  # noqa: PLR0913 - one decision step's scene, plan and ego box
                   follow_lead: int, pol: ObstaclePolicy, ego_length_m: float,
                   ego_width_m: float, lane_width_m: float,
                   accel_mps2: FloatArray | None = None) -> Obstacles:

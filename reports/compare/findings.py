@@ -212,7 +212,7 @@ def _metric_pairs(b: RunEntry, n: RunEntry) -> list[tuple[MetricValue, MetricVal
     return [(base[m.name], m) for m in n.metrics if m.name in base]
 
 
-def _tolerance_row(key: str, n: RunEntry, mb: MetricValue, mn: MetricValue,  # noqa: PLR0911
+def _tolerance_row(key: str, n: RunEntry, mb: MetricValue, mn: MetricValue,
                    tol: Tolerances) -> CompareRow | None:
     """A behaviour/health metric (or a timing count) against its tolerance."""
     mt = tol.tolerance(mn.name)
@@ -233,7 +233,14 @@ def _tolerance_row(key: str, n: RunEntry, mb: MetricValue, mn: MetricValue,  # n
         worse = math.copysign(math.inf, worse)
     if abs(worse) <= limit:
         return None
-    delta = vn - vb
+    return _beyond_tolerance_row(mn, tol, vn - vb, worse, limit, common)
+
+
+def _beyond_tolerance_row(mn: MetricValue, tol: Tolerances, delta: float, worse: float,
+                          limit: float, common: dict[str, Any]) -> CompareRow:
+    """The row of metric ``mn`` changed by ``delta`` (new - base), ``worse`` (in its
+    worse direction) beyond its tolerance ``limit``: an improvement, a slower timing, a
+    gated regression or a health change."""
     if worse < 0:
         kind = "timing_faster" if mn.kind == "timing" else "metric_improvement"
         return CompareRow(kind=kind, delta=delta, limit=limit, **common)

@@ -62,7 +62,7 @@ def sg_window(n: int, dt: float) -> int:
     return w
 
 
-def sg(values: np.ndarray, dt: float, deriv: int = 0) -> FloatColumn:  # noqa: PLR0911
+def sg(values: np.ndarray, dt: float, deriv: int = 0) -> FloatColumn:
     """Savitzky–Golay smoothing (deriv=0) or derivative (deriv≥1) of a uniformly sampled
     signal (T,) at period dt [s]. NaNs are linearly interpolated first; all-NaN input
     gives all-NaN output. Smoothing fits the ends (scipy's ``mode='interp'``); a
@@ -79,6 +79,14 @@ def sg(values: np.ndarray, dt: float, deriv: int = 0) -> FloatColumn:  # noqa: P
         y = np.interp(idx, idx[ok], y[ok])
     if not (math.isfinite(dt) and dt > 0):
         return np.full(n, np.nan)
+    return _sg_finite(y, dt, deriv)
+
+
+def _sg_finite(y: FloatColumn, dt: float, deriv: int) -> FloatColumn:
+    """:func:`sg` of a finite, non-empty signal ``y`` at a valid period ``dt`` [s]: the
+    filter when its window exceeds the polynomial order; else ``y`` itself (deriv=0) or
+    its ``deriv``-th finite-difference derivative (NaN for a single sample)."""
+    n = y.size
     w = sg_window(n, dt)
     if w > SG_POLYORDER:
         out: FloatColumn = savgol_filter(y, w, SG_POLYORDER, deriv=deriv, delta=dt,

@@ -45,7 +45,7 @@ class RecordError(ValueError):
         super().__init__(f"{path}: {key or '<root>'}: expected {expected}, got {shown}")
 
 
-def to_plain(value: Any) -> Any:  # noqa: PLR0911 (issue 37: still to split)
+def to_plain(value: Any) -> Any:
     """JSON-able copy of ``value`` (dataclasses become dicts, tuples lists)."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return {f.name: to_plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
@@ -53,6 +53,12 @@ def to_plain(value: Any) -> Any:  # noqa: PLR0911 (issue 37: still to split)
         return {str(k): to_plain(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [to_plain(v) for v in value]
+    return _plain_leaf(value)
+
+
+def _plain_leaf(value: Any) -> Any:
+    """JSON-able form of a value that holds no others: numpy arrays as nested lists,
+    numpy scalars as Python ones, paths as strings, anything else as it is."""
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):

@@ -27,7 +27,7 @@ from controllers.two_loop.outer.params import CgmresParams, IpoptParams, ipopt_p
 __all__ = ["StraightPath", "benchmark_ipopt", "benchmark_outer", "solver_comparison"]
 
 
-def benchmark_outer(outer: Any, *, duration_s: float = 6.0, period_s: float = 0.02,  # noqa: PLR0913
+def benchmark_outer(outer: Any, *, duration_s: float = 6.0, period_s: float = 0.02,  # noqa: PLR0913 - keyword options of the bench scenario
                     speed_mps: float = 25.0, obstacle_s_m: float = 110.0,
                     obstacle_y_m: float = -0.3, semi_a_m: float = 6.8, semi_b_m: float = 2.3,
                     detection_m: float = 80.0, iterations: Callable[[], int] | None = None

@@ -75,30 +75,14 @@ class ControllerChecker:
         return []
 
 
-    def spec(self, raw: Any, report: Report) -> ControllerSpec | None:  # noqa: PLR0911
+    def spec(self, raw: Any, report: Report) -> ControllerSpec | None:
         """The checked spec of a scenario's ``controller`` value; None (reported) if bad."""
         if raw is MISSING:
             return None
-        if isinstance(raw, str):
-            name, options = raw, {}
-        elif isinstance(raw, dict):
-            if "name" not in raw:
-                report.add("controller.name", "a controller name in the controller table")
-                return None
-            name = raw["name"]
-            options = {k: v for k, v in raw.items() if k != "name"}
-        else:
-            report.add("controller", "a controller name or a table {name = ..., <options>}",
-                       raw)
+        parsed = _name_and_options(raw, report)
+        if parsed is None:
             return None
-        if not isinstance(name, str) or rules.name_rule(name):
-            report.add("controller.name", "a controller name matching [a-z0-9_]+", name)
-            return None
-        bad = rules.non_json_path(options)
-        if bad is not None:
-            report.add(f"controller.{bad[0]}", "a JSON-able value (string, number, bool, "
-                       "list, table)", bad[1])
-            return None
+        name, options = parsed
         if not self.known and self.registry_error:
             return ControllerSpec(name, options)  # registry problem reported once
         problems = self.check(name, options)
@@ -107,6 +91,34 @@ class ControllerChecker:
         if problems:
             return None
         return ControllerSpec(name, options)
+
+
+def _name_and_options(raw: Any, report: Report) -> tuple[str, dict[str, Any]] | None:
+    """(name, options) of a ``controller`` value (a name, or a table with ``name`` and
+    options); None (reported) unless it is one, the name a controller name and every
+    option JSON-able."""
+    options: dict[str, Any]
+    if isinstance(raw, str):
+        name, options = raw, {}
+    elif isinstance(raw, dict):
+        if "name" not in raw:
+            report.add("controller.name", "a controller name in the controller table")
+            return None
+        name = raw["name"]
+        options = {k: v for k, v in raw.items() if k != "name"}
+    else:
+        report.add("controller", "a controller name or a table {name = ..., <options>}",
+                   raw)
+        return None
+    if not isinstance(name, str) or rules.name_rule(name):
+        report.add("controller.name", "a controller name matching [a-z0-9_]+", name)
+        return None
+    bad = rules.non_json_path(options)
+    if bad is not None:
+        report.add(f"controller.{bad[0]}", "a JSON-able value (string, number, bool, "
+                   "list, table)", bad[1])
+        return None
+    return name, options
 
 
 def _sub_key(key: str) -> str:

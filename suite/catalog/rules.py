@@ -185,27 +185,39 @@ def number_map(v: Any) -> str | None:
     return None
 
 
-def non_json_path(value: Any, prefix: str = "") -> tuple[str, Any] | None:  # noqa: PLR0911
+def non_json_path(value: Any, prefix: str = "") -> tuple[str, Any] | None:
     """First (dotted path, value) that is not JSON-able, else None."""
     if isinstance(value, Mapping):
-        for k, v in value.items():
-            if not isinstance(k, str):
-                return prefix or str(k), k
-            bad = non_json_path(v, f"{prefix}.{k}" if prefix else k)
-            if bad is not None:
-                return bad
-        return None
+        return _non_json_in_table(value, prefix)
     if isinstance(value, list | tuple):
-        for i, v in enumerate(value):
-            bad = non_json_path(v, f"{prefix}.{i}" if prefix else str(i))
-            if bad is not None:
-                return bad
-        return None
+        return _non_json_in_list(value, prefix)
     if value is None or isinstance(value, str | bool | int):
         return None
     if isinstance(value, float) and math.isfinite(value):
         return None
     return prefix, value
+
+
+def _non_json_in_table(value: Mapping[Any, Any], prefix: str) -> tuple[str, Any] | None:
+    """:func:`non_json_path` of a table at ``prefix``: a key that is not a string, or
+    the first non-JSON-able path of a value, in order."""
+    for k, v in value.items():
+        if not isinstance(k, str):
+            return prefix or str(k), k
+        bad = non_json_path(v, f"{prefix}.{k}" if prefix else k)
+        if bad is not None:
+            return bad
+    return None
+
+
+def _non_json_in_list(value: list[Any] | tuple[Any, ...], prefix: str
+                      ) -> tuple[str, Any] | None:
+    """:func:`non_json_path` of a list at ``prefix``: its items' paths are their indices."""
+    for i, v in enumerate(value):
+        bad = non_json_path(v, f"{prefix}.{i}" if prefix else str(i))
+        if bad is not None:
+            return bad
+    return None
 
 
 def check_fields(obj: Any) -> None:

@@ -155,7 +155,7 @@ def _parameter_table(v: Any) -> bool:
         for k, x in v.items())
 
 
-def openscenario_problem(v: Any) -> tuple[str, str, Any] | None:  # noqa: PLR0911
+def openscenario_problem(v: Any) -> tuple[str, str, Any] | None:
     """None when ``v`` is an ``openscenario`` table (the template and parameter values a
     scenario was imported from: docs/catalog.md), else (the key at fault, what was
     expected, what was found)."""
@@ -170,6 +170,12 @@ def openscenario_problem(v: Any) -> tuple[str, str, Any] | None:  # noqa: PLR091
     if not isinstance(template, str) or not template.strip():
         return "openscenario.template", ("an OpenSCENARIO file path (relative to the "
                                          "catalog, or absolute)"), template
+    return _openscenario_values_problem(v)
+
+
+def _openscenario_values_problem(v: Mapping[str, Any]) -> tuple[str, str, Any] | None:
+    """:func:`openscenario_problem` of the keys besides the template: the parameter
+    values, the value sets, the ego's name, ``ignore_constraints``."""
     what = "a table of parameter name -> string, finite number or bool"
     if not _parameter_table(v.get("parameters", {})):
         return "openscenario.parameters", what, v.get("parameters")

@@ -123,13 +123,20 @@ def overlapping(keys: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def path_target(root: Any, path: str) -> tuple[bool, str]:  # noqa: PLR0911
+def path_target(root: Any, path: str) -> tuple[bool, str]:
     """(ok, problem) for a dotted sweep path in a merged scenario dict."""
     comps = path.split(".")
     if not path or any(c == "" for c in comps):
         return False, "a dotted path such as \"stalled.0.pos_m\""
     if comps[0] in ("name", "sweep"):
         return False, "a path not under 'name' or 'sweep'"
+    return _walk_target(root, path, comps)
+
+
+def _walk_target(root: Any, path: str, comps: list[str]) -> tuple[bool, str]:
+    """:func:`path_target` of a well-formed ``path`` (components ``comps``): each list
+    index in range and each key present, but for an optional key that may be missing
+    and the nested options of a controller (the controller checks them)."""
     node = root
     for depth, comp in enumerate(comps):
         last = depth == len(comps) - 1

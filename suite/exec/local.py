@@ -141,13 +141,7 @@ class LocalExecutor:
         ended: list[_Running] = []  # processes that ended, their records not read yet
         try:
             while (pending or running or ended) and not stop.requested:
-                while pending and len(running) < self.jobs and not stop.requested:
-                    job = pending.popleft()
-                    started = self._start(job)
-                    if isinstance(started, RunRecord):
-                        done(started)
-                    else:
-                        running[started.proc.sentinel] = started
+                self._dispatch(pending, running, done, stop)
                 # Read the ended runs' records only now: the next scenario processes
                 # start meanwhile instead of after it (15-30 ms of every run).
                 while ended:
@@ -158,12 +152,32 @@ class LocalExecutor:
                     ended.append(running.pop(sentinel))
                 self._kill_overdue(running, done)
         finally:
-            for item in ended:  # finished and published before the stop: kept
-                done(self._finish(item, None))
-            if running:  # a stop request, or the parent itself failed: no orphan
-                self._abandon(list(running.values()), done)
-            self._after(stop)
+            self._wind_down(ended, running, done, stop)
         return results
+
+    def _dispatch(self, pending: deque[RunJob], running: dict[Any, _Running],
+                  done: Callable[[RunRecord | None], None], stop: StopRequest) -> None:
+        """Start pending jobs, in order, while fewer than ``jobs`` run and no stop is
+        requested; ``running`` gets each started process by its sentinel, ``done`` the
+        error record of a job that could not start."""
+        while pending and len(running) < self.jobs and not stop.requested:
+            job = pending.popleft()
+            started = self._start(job)
+            if isinstance(started, RunRecord):
+                done(started)
+            else:
+                running[started.proc.sentinel] = started
+
+    def _wind_down(self, ended: list[_Running], running: dict[Any, _Running],
+                   done: Callable[[RunRecord | None], None], stop: StopRequest) -> None:
+        """The end of :meth:`run`, however it ends: the records of the processes that
+        ended are read, the ones still running are abandoned, the forkserver stopped
+        on a stop request."""
+        for item in ended:  # finished and published before the stop: kept
+            done(self._finish(item, None))
+        if running:  # a stop request, or the parent itself failed: no orphan
+            self._abandon(list(running.values()), done)
+        self._after(stop)
 
     def _warm_up(self, stop: StopRequest) -> bool:
         """Start the forkserver and wait for its preload in a thread, polling ``stop``;

@@ -208,21 +208,22 @@ def _without_dir(exc: Exception, run_dir: Path) -> str:
 
 
 def _stale(record: RunRecord, job: RunJob) -> str:
-    """Why ``record`` is not the result ``job`` would give ('' when it is)."""
+    """Why ``record`` is not the result ``job`` would give ('' when it is): the first
+    check that fails, in order."""
     info, spec = record.info, record.info.scenario_spec
-    if record.status not in FINISHED:
-        return f"ended {record.status}"
-    if info.scenario != job.name:
-        return f"holds scenario {info.scenario!r}"
-    if info.hwyeval_version != __version__:
-        return f"made by hwyeval {info.hwyeval_version or '?'}"
-    if not job.options.content_sha256 or spec.get(CONTENT_KEY) != job.options.content_sha256:
-        return "the scenario changed (content hash)"
-    if spec.get(CODE_KEY, "") != job.options.code_sha256:
-        return "hwyeval's code changed (source hash)"
-    if spec.get(CONTROLLER_KEY, "") != job.options.controller_sha256:
-        return f"controller {info.controller}'s source changed"
-    return ""
+    options = job.options
+    checks = (
+        (record.status not in FINISHED, f"ended {record.status}"),
+        (info.scenario != job.name, f"holds scenario {info.scenario!r}"),
+        (info.hwyeval_version != __version__,
+         f"made by hwyeval {info.hwyeval_version or '?'}"),
+        (not options.content_sha256 or spec.get(CONTENT_KEY) != options.content_sha256,
+         "the scenario changed (content hash)"),
+        (spec.get(CODE_KEY, "") != options.code_sha256, "hwyeval's code changed (source hash)"),
+        (spec.get(CONTROLLER_KEY, "") != options.controller_sha256,
+         f"controller {info.controller}'s source changed"),
+    )
+    return next((why for failed, why in checks if failed), "")
 
 
 def resume_plan(jobs: Sequence[RunJob]) -> ResumePlan:

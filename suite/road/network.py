@@ -81,6 +81,37 @@ def dedupe_polyline(points: np.ndarray, tol_m: float = _DUP_TOL_M) -> np.ndarray
 centreline_arclength = arc_lengths_m
 
 
+def _acyclic_post_order(succ: dict[str, list[str]]
+                        ) -> tuple[list[str], dict[str, list[str]]]:
+    """(post-order of the nodes, successor graph without back edges) of the graph
+    ``succ``: an iterative DFS from each node in sorted order that drops every edge
+    closing a cycle."""
+    state: dict[str, int] = {}  # 1: on the stack, 2: finished
+    order: list[str] = []
+    dag: dict[str, list[str]] = {eid: [] for eid in succ}
+    for root in sorted(succ):
+        if root in state:
+            continue
+        stack: list[tuple[str, int]] = [(root, 0)]
+        state[root] = 1
+        while stack:
+            node, i = stack[-1]
+            if i < len(succ[node]):
+                stack[-1] = (node, i + 1)
+                nxt = succ[node][i]
+                if state.get(nxt) == 1:
+                    continue  # back edge: would close a cycle
+                dag[node].append(nxt)
+                if nxt not in state:
+                    state[nxt] = 1
+                    stack.append((nxt, 0))
+            else:
+                state[node] = 2
+                order.append(node)
+                stack.pop()
+    return order, dag
+
+
 @dataclass(frozen=True)
 class LaneInfo:
     """One lane of a route edge. ``shape_xy_m`` is the SUMO lane shape (M, 2)."""
@@ -283,7 +314,17 @@ class RoadNetwork:
         """The link edges of ``route``, in route order (:meth:`is_link`)."""
         return [eid for eid in route if eid in self._edges and self.is_link(eid)]
 
-    def _longest_path(self) -> tuple[str, ...]:  # noqa: C901 (issue 37: still to split)
+    def _longest_path(self) -> tuple[str, ...]:
+        """The default route: the longest acyclic path over :meth:`_route_edges`."""
+        usable = self._route_edges()
+        succ = {eid: [s for s in self._successors(eid) if s in usable] for eid in sorted(usable)}
+        order, dag = _acyclic_post_order(succ)
+        return self._longest_over(order, dag)
+
+    def _route_edges(self) -> set[str]:
+        """The edges a default route may use: passenger edges (every edge when none
+        allows passengers), and of those the through carriageway (no links) unless
+        only links are left."""
         usable = {eid for eid, e in self._edges.items()
                   if any(lane.allows("passenger") for lane in e.getLanes())}
         if not usable:
@@ -291,31 +332,11 @@ class RoadNetwork:
         through = {eid for eid in usable if not self.is_link(eid)}
         if through:  # the through carriageway: ramps only where nothing else is left
             usable = through
-        succ = {eid: [s for s in self._successors(eid) if s in usable] for eid in sorted(usable)}
-        # Iterative DFS: drop back edges (cycle guard) and get a post-order.
-        state: dict[str, int] = {}
-        order: list[str] = []
-        dag: dict[str, list[str]] = {eid: [] for eid in succ}
-        for root in sorted(succ):
-            if root in state:
-                continue
-            stack: list[tuple[str, int]] = [(root, 0)]
-            state[root] = 1
-            while stack:
-                node, i = stack[-1]
-                if i < len(succ[node]):
-                    stack[-1] = (node, i + 1)
-                    nxt = succ[node][i]
-                    if state.get(nxt) == 1:
-                        continue  # back edge: would close a cycle
-                    dag[node].append(nxt)
-                    if nxt not in state:
-                        state[nxt] = 1
-                        stack.append((nxt, 0))
-                else:
-                    state[node] = 2
-                    order.append(node)
-                    stack.pop()
+        return usable
+
+    def _longest_over(self, order: list[str], dag: dict[str, list[str]]) -> tuple[str, ...]:
+        """The longest path (m, junctions included) through ``dag``, ``order`` being its
+        post-order; ties (within 1e-6 m) go to the lexicographically smallest path."""
         best: dict[str, tuple[float, tuple[str, ...]]] = {}
         for node in order:  # post-order: successors first
             length = self.edge_length_m(node)

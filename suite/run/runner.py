@@ -236,9 +236,9 @@ def run_scenario(scenario: Scenario, out_dir: Path, options: RunOptions | None =
     try:
         stage = staging_dir(Path(out_dir), scenario.name)
     except OSError:
-        record = _record(scenario, options, vehicle, None, WorldSummary(), "error",
-                         "cannot create the run directory:\n" + traceback.format_exc(), "",
-                         wall0)
+        record = _record(_recording(scenario, options, vehicle, None), WorldSummary(),
+                         "error", "cannot create the run directory:\n"
+                         + traceback.format_exc(), "", wall0)
         return judge_record(record)
     end, error, reason = "ok", None, ""
     run: _Run | None = None
@@ -256,7 +256,8 @@ def run_scenario(scenario: Scenario, out_dir: Path, options: RunOptions | None =
                 summary = run.world.close()
             except Exception:  # noqa: BLE001 - SUMO failing to close is the run's error
                 end, error = "error", (error or "") + traceback.format_exc()
-    record = _record(scenario, options, vehicle, run, summary, end, error, reason, wall0)
+    record = _record(_recording(scenario, options, vehicle, run), summary, end, error, reason,
+                     wall0)
     try:
         record = _judge_and_write(record, stage, options)
         publish_run_dir(stage, final)
@@ -272,18 +273,37 @@ def run_scenario(scenario: Scenario, out_dir: Path, options: RunOptions | None =
     return record
 
 
-def _record(scenario: Scenario, options: RunOptions, vehicle: VehicleParams, run: _Run | None,  # noqa: PLR0913
-            summary: WorldSummary, end: str, error: str | None, reason: str,
-            wall0: float) -> RunRecord:
+@dataclass(frozen=True)
+class _Recording:
+    """What a run recorded (empty for a run that never started): its info, road, trace,
+    neighbour columns and controller arrays."""
+
+    info: RunInfo
+    road: RoadRecord
+    trace: Trace
+    neighbours: NeighbourColumns
+    arrays: ControllerArrays
+
+
+def _recording(scenario: Scenario, options: RunOptions, vehicle: VehicleParams,
+               run: _Run | None) -> _Recording:
+    """The recording of ``run`` (its recorder finished), or, with no run, an empty one
+    with the info known before a run starts."""
     if run is not None:
         trace, neighbours, arrays = run.recorder.finish(run.detection_m)
-        info, road = run.info, run.road
-    else:
-        trace, neighbours, arrays = Trace.empty(), NeighbourColumns.allocate(0), ControllerArrays()
-        info = scenario_info(scenario, options.catalog_name, vehicle,
-                             content_sha256=options.content_sha256,
-                             identity=identity_of(options))
-        road = RoadRecord()
+        return _Recording(run.info, run.road, trace, neighbours, arrays)
+    trace, neighbours, arrays = Trace.empty(), NeighbourColumns.allocate(0), ControllerArrays()
+    info = scenario_info(scenario, options.catalog_name, vehicle,
+                         content_sha256=options.content_sha256,
+                         identity=identity_of(options))
+    return _Recording(info, RoadRecord(), trace, neighbours, arrays)
+
+
+def _record(recording: _Recording, summary: WorldSummary, end: str, error: str | None,
+            reason: str, wall0: float) -> RunRecord:
+    """The run's record: ``recording`` and its outcome (``end``, ``error``, the stop
+    ``reason``, the wall time since ``wall0`` [s, perf_counter], SUMO's ``summary``)."""
+    trace = recording.trace
     trace.safety.ssm_ttc_s[:] = summary.ssm_ttc_at(trace.t_s)
     outcome = RunOutcome(
         end=end, error=error, stop_reason=reason, wall_s=time.perf_counter() - wall0,
@@ -292,8 +312,8 @@ def _record(scenario: Scenario, options: RunOptions, vehicle: VehicleParams, run
         peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         sumo_t_origin_s=summary.t_origin_s, stalled=summary.stalled,
         sumo_collisions=summary.collisions, ssm=summary.ssm, replay=summary.replay)
-    return RunRecord(info=info, outcome=outcome, road=road, trace=trace, neighbours=neighbours,
-                     arrays=arrays, run_dir=None)
+    return RunRecord(info=recording.info, outcome=outcome, road=recording.road, trace=trace,
+                     neighbours=recording.neighbours, arrays=recording.arrays, run_dir=None)
 
 
 def void_metrics(verdict: Verdict) -> Verdict:

@@ -251,7 +251,7 @@ def _behaviour(policy: ObstaclePolicy | None, path: FrenetPath, road: ScriptedRo
                                                 allow_shoulder), road.lane_width_m)
 
 
-def run_plant(controller: Controller, road: ScriptedRoad,  # noqa: PLR0913
+def run_plant(controller: Controller, road: ScriptedRoad,  # noqa: PLR0913 - keyword options of the test plant, 23 callers
               vehicles: tuple[ScriptedVehicle, ...] = (), *, duration_s: float,
               step_s: float = 0.02, start: PlantStart | None = None,
               set_speed_mps: float = 25.0, set_speed_fn: Callable[[float], float] | None = None,

@@ -308,47 +308,70 @@ def _number(v: Any) -> bool:
     return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
 
 
+_FORM = "{ min = A, max = B }, { min = A, max = B, int = true } or { choices = [...] }"
+
+
 def _param(key: str, spec: Any, loc: str, bad: Any) -> Param | None:
-    form = "{ min = A, max = B }, { min = A, max = B, int = true } or { choices = [...] }"
+    """The parameter searched at ``key`` from its ``spec`` table (one of the three
+    forms); None after telling ``bad`` (at ``loc``) what is wrong with it."""
     if not isinstance(spec, Mapping) or not spec:
-        bad(loc, form, spec)
+        bad(loc, _FORM, spec)
         return None
     unknown = [k for k in spec if k not in SPEC_KEYS]
     if unknown:
-        bad(loc, f"only the keys {list(SPEC_KEYS)} ({form})", unknown[0])
+        bad(loc, f"only the keys {list(SPEC_KEYS)} ({_FORM})", unknown[0])
         return None
     if "choices" in spec:
-        choices = spec["choices"]
-        if set(spec) != {"choices"}:
-            bad(loc, "choices alone, without min, max or int", dict(spec))
-        elif not isinstance(choices, list) or not choices:
-            bad(loc, "a non-empty list of choices", choices)
-        elif len({json.dumps(c, sort_keys=True, default=str) for c in choices}) < len(choices):
-            bad(loc, "distinct choices", choices)
-        else:
-            return Param(key, CHOICE, choices=tuple(freeze(c) for c in choices))
-        return None
+        return _choice_param(key, spec, loc, bad)
+    return _range_param(key, spec, loc, bad)
+
+
+def _choice_param(key: str, spec: Mapping[str, Any], loc: str, bad: Any) -> Param | None:
+    """A ``{ choices = [...] }`` parameter: a non-empty list of distinct values and no
+    other key; None after telling ``bad`` what is wrong."""
+    choices = spec["choices"]
+    if set(spec) != {"choices"}:
+        bad(loc, "choices alone, without min, max or int", dict(spec))
+    elif not isinstance(choices, list) or not choices:
+        bad(loc, "a non-empty list of choices", choices)
+    elif len({json.dumps(c, sort_keys=True, default=str) for c in choices}) < len(choices):
+        bad(loc, "distinct choices", choices)
+    else:
+        return Param(key, CHOICE, choices=tuple(freeze(c) for c in choices))
+    return None
+
+
+def _range_param(key: str, spec: Mapping[str, Any], loc: str, bad: Any) -> Param | None:
+    """A ``{ min, max }`` or ``{ min, max, int = true }`` parameter; None after telling
+    ``bad`` what is wrong."""
     is_int = spec.get("int", False)
     if not isinstance(is_int, bool):
         bad(loc, "int = true or false", is_int)
         return None
     lo: Any = spec.get("min")
     hi: Any = spec.get("max")
-    for end, v in (("min", lo), ("max", hi)):
-        if v is None:
-            bad(loc, f"a '{end}' (with '{'max' if end == 'min' else 'min'}'), or choices")
-            return None
-        if not _number(v) or (is_int and not (isinstance(v, int) or float(v).is_integer())):
-            bad(loc, f"{end}: a finite {'integer' if is_int else 'number'}", v)
-            return None
-    if lo > hi:
-        bad(loc, f"min <= max (min {lo!r} > max {hi!r})", dict(spec))
-        return None
-    if lo == hi:
-        bad(loc, f"a non-empty range, min < max (both {lo!r}: set the key itself)",
-            dict(spec))
+    problem = _range_problem(lo, hi, is_int, spec)
+    if problem is not None:
+        bad(loc, *problem)
         return None
     return Param(key, INT if is_int else FLOAT, float(lo), float(hi))
+
+
+def _range_problem(lo: Any, hi: Any, is_int: bool, spec: Mapping[str, Any]
+                   ) -> tuple[str, Any] | None:
+    """(what was expected, what was found) for the first problem of the range ends
+    ``lo`` (min), ``hi`` (max): missing, not a finite number (integer when ``is_int``),
+    out of order or equal; None when they make a range."""
+    for end, v in (("min", lo), ("max", hi)):
+        if v is None:
+            return f"a '{end}' (with '{'max' if end == 'min' else 'min'}'), or choices", MISSING
+        if not _number(v) or (is_int and not (isinstance(v, int) or float(v).is_integer())):
+            return f"{end}: a finite {'integer' if is_int else 'number'}", v
+    if lo > hi:
+        return f"min <= max (min {lo!r} > max {hi!r})", dict(spec)
+    if lo == hi:
+        return f"a non-empty range, min < max (both {lo!r}: set the key itself)", dict(spec)
+    return None
 
 
 def _value_at(root: Any, path: str) -> Any:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import TypeGuard
 
 __all__ = ["FEATURES", "StressConfig"]
 
@@ -68,19 +69,16 @@ class StressConfig:
     wet_friction: Range = (0.5, 0.7)
     controllers: tuple[str, ...] = ("two_loop",)
 
-    def __post_init__(self) -> None:  # noqa: C901 (issue 37: still to split)
+    def __post_init__(self) -> None:
         for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name.endswith("_share"):
-                if not (_real(value) and 0.0 <= value <= 1.0):
-                    raise ValueError(f"StressConfig.{f.name} must be in [0, 1], got {value!r}")
-            elif isinstance(value, tuple) and f.name not in ("lanes", "controllers"):
-                if len(value) != 2 or not all(_real(v) for v in value) or value[0] > value[1] \
-                        or value[0] < 0:
-                    raise ValueError(f"StressConfig.{f.name} must be a range (low, high) with "
-                                     f"0 <= low <= high, got {value!r}")
-            elif f.name not in ("lanes", "controllers") and not (_real(value) and value > 0):
-                raise ValueError(f"StressConfig.{f.name} must be a number > 0, got {value!r}")
+            if f.name not in ("lanes", "controllers"):
+                _check_value(f.name, getattr(self, f.name))
+        self._check_names()
+        self._check_consistency()
+
+    def _check_names(self) -> None:
+        """Raise ValueError unless ``lanes`` lists lane counts in 1..6 and
+        ``controllers`` non-empty controller names."""
         if not self.lanes or any(not isinstance(n, int) or not 1 <= n <= 6 for n in self.lanes):
             raise ValueError(f"StressConfig.lanes must list lane counts in 1..6, got "
                              f"{self.lanes!r}")
@@ -88,6 +86,11 @@ class StressConfig:
                                        for c in self.controllers):
             raise ValueError(f"StressConfig.controllers must name controllers, got "
                              f"{self.controllers!r}")
+
+    def _check_consistency(self) -> None:
+        """Raise ValueError unless the fields agree with each other: a step within the
+        duration, the stalled counts ordered, several stalled cars fitting their range,
+        the wet friction in (0, 2]."""
         if self.step_s > self.duration_s:
             raise ValueError("StressConfig.step_s must not exceed duration_s")
         if self.stalled_count[0] < 1 or self.several_stalled_count[0] <= self.stalled_count[1]:
@@ -102,5 +105,21 @@ class StressConfig:
                              f"{self.wet_friction!r}")
 
 
-def _real(value: object) -> bool:
+def _check_value(name: str, value: object) -> None:
+    """Raise ValueError unless field ``name`` holds what its kind needs: a share in
+    [0, 1], a range (low, high) with 0 <= low <= high, else a number > 0."""
+    if name.endswith("_share"):
+        if not (_real(value) and 0.0 <= value <= 1.0):
+            raise ValueError(f"StressConfig.{name} must be in [0, 1], got {value!r}")
+    elif isinstance(value, tuple):
+        if len(value) != 2 or not all(_real(v) for v in value) or value[0] > value[1] \
+                or value[0] < 0:
+            raise ValueError(f"StressConfig.{name} must be a range (low, high) with "
+                             f"0 <= low <= high, got {value!r}")
+    elif not (_real(value) and value > 0):
+        raise ValueError(f"StressConfig.{name} must be a number > 0, got {value!r}")
+
+
+def _real(value: object) -> TypeGuard[float]:
+    """Whether ``value`` is a finite int or float (not a bool)."""
     return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)

@@ -327,7 +327,7 @@ class CgmresOuter(CruiseSetPoint):
         plan.solve_s = time.perf_counter() - t_start
         return plan
 
-    def _continue(self, t_s: float, x0: np.ndarray, dt_s: float, yr: float, cy: float,  # noqa: PLR0913
+    def _continue(self, t_s: float, x0: np.ndarray, dt_s: float, yr: float, cy: float,  # noqa: PLR0913 - one update's scalars, flat on the hot path
                   czs: float, prm: np.ndarray) -> int:
         """``sub_updates`` continuation updates from the previous update to (t_s, x0);
         yr, Cy and the barrier's scale sigma move linearly from their previous values.

@@ -111,7 +111,7 @@ def combine(udot: np.ndarray, vb: np.ndarray, y: np.ndarray, k: int) -> None:
             udot[i] += c * vb[ll, i]
 
 
-def cgmres_step(residual: Callable[[np.ndarray, np.ndarray, float], np.ndarray],  # noqa: PLR0913
+def cgmres_step(residual: Callable[[np.ndarray, np.ndarray, float], np.ndarray],  # noqa: PLR0913 - U, U', x, x' and settings, flat like the compiled update
                 u: np.ndarray, udot: np.ndarray, x: np.ndarray, xdot: np.ndarray, t: float,
                 dt: float, zeta_s: float, h: float, k_max: int,
                 ) -> tuple[np.ndarray, np.ndarray, float]:

@@ -80,8 +80,8 @@ from controllers.two_loop.outer.ocp_layout import stage_times
 from controllers.two_loop.outer.params import OcpParams
 
 __all__ = ["N_WEIGHTS", "OBS_COLS", "J3Weights", "Nlp", "PathLike", "PathLookup",
-           "checked_stage_times", "ellipse_values", "get_nlp", "pack_obstacles", "path_lookup",
-           "weights_from_params"]
+           "NlpSolution", "checked_stage_times", "ellipse_values", "get_nlp", "pack_obstacles",
+           "path_lookup", "solve_nlp", "weights_from_params"]
 
 # Columns of the packed obstacle parameter block.
 OBS_COLS = 6  # s_m, y_m, speed_s_mps, speed_y_mps, semi_a_m, semi_b_m
@@ -263,96 +263,141 @@ class Nlp:
     lookup: PathLookup  # held so that the cache key's id stays this lookup's
 
 
-def _build_nlp(lookup: PathLookup, n: int, k: int, formulation: str,  # noqa: C901, PLR0915
-               ipopt_opts: dict[str, Any]) -> Nlp:
-    ca = _casadi()
-    t0 = time.perf_counter()
-    sx = ca.SX
-    p_x0 = sx.sym("x0", 3)
-    p_vt = sx.sym("vt")
-    p_dt = sx.sym("dtau", n)
-    p_obs = sx.sym("obs", OBS_COLS * k)
-    p_w = sx.sym("w", N_WEIGHTS)
-    p_yr = sx.sym("yref")
-    c_y, c_yd, c_sd, c_om, c_z, zeta, t_y, t_e = (p_w[i] for i in range(N_WEIGHTS))
+class _NlpBuilder:
+    """The NLP of one (path, N, K, formulation) as it is written down: its parameters,
+    its decision variables ``w`` and constraints ``g`` (with bounds) in the order they
+    are added, the index tables of :class:`Nlp`, the cost so far, and the state node
+    (s, y, theta) and stage time tau [s] the next stage starts from."""
 
-    w: list[Any] = []
-    g: list[Any] = []
-    lbg: list[float] = []
-    ubg: list[float] = []
-    iu = np.full((n, 2), -1, dtype=np.int64)
-    iz = np.full((n, k), -1, dtype=np.int64)
-    ix = np.full((n + 1, 3), -1, dtype=np.int64)
-    gdyn = np.full((n, 3), -1, dtype=np.int64)
-    gobs = np.full((n + 1, k), -1, dtype=np.int64)
+    def __init__(self, ca: Any, lookup: PathLookup, n: int, k: int, formulation: str) -> None:
+        self.ca = ca
+        self.lookup = lookup
+        self.n, self.k, self.formulation = n, k, formulation
+        sx = ca.SX
+        self.p_x0 = sx.sym("x0", 3)
+        self.p_vt = sx.sym("vt")
+        self.p_dt = sx.sym("dtau", n)
+        self.p_obs = sx.sym("obs", OBS_COLS * k)
+        self.p_w = sx.sym("w", N_WEIGHTS)
+        self.p_yr = sx.sym("yref")
+        self.weights = tuple(self.p_w[i] for i in range(N_WEIGHTS))
+        self.w: list[Any] = []
+        self.g: list[Any] = []
+        self.lbg: list[float] = []
+        self.ubg: list[float] = []
+        self.iu = np.full((n, 2), -1, dtype=np.int64)
+        self.iz = np.full((n, k), -1, dtype=np.int64)
+        self.ix = np.full((n + 1, 3), -1, dtype=np.int64)
+        self.gdyn = np.full((n, 3), -1, dtype=np.int64)
+        self.gobs = np.full((n + 1, k), -1, dtype=np.int64)
+        self.state: tuple[Any, Any, Any] = (self.p_x0[0], self.p_x0[1], self.p_x0[2])
+        self.tau: Any = 0.0
+        self.cost: Any = 0.0
 
-    def new_var(name: str) -> Any:
-        v = sx.sym(name)
-        w.append(v)
+    def new_var(self, name: str) -> Any:
+        """A new decision variable, appended to ``w``."""
+        v = self.ca.SX.sym(name)
+        self.w.append(v)
         return v
 
-    def add_con(expr: Any, lo: float, hi: float) -> int:
-        g.append(expr)
-        lbg.append(lo)
-        ubg.append(hi)
-        return len(g) - 1
+    def add_con(self, expr: Any, lo: float, hi: float) -> int:
+        """Append the constraint lo <= expr <= hi; its row in ``g``."""
+        self.g.append(expr)
+        self.lbg.append(lo)
+        self.ubg.append(hi)
+        return len(self.g) - 1
 
-    def ellipse(j: int, s: Any, y: Any, tau: Any) -> Any:
-        o = p_obs[OBS_COLS * j:OBS_COLS * (j + 1)]
+    def ellipse(self, j: int, s: Any, y: Any, tau: Any) -> Any:
+        """c_j(s, y, tau) of obstacle j (module docstring)."""
+        o = self.p_obs[OBS_COLS * j:OBS_COLS * (j + 1)]
         ds = s - (o[0] + o[2] * tau)
         dy = y - (o[1] + o[3] * tau)
         return ds * ds / (o[4] * o[4]) + dy * dy / (o[5] * o[5]) - 1.0
 
-    s0 = p_x0[0]
-    x_s, x_y, x_th = p_x0[0], p_x0[1], p_x0[2]
-    tau: Any = 0.0
-    cost: Any = 0.0
-    for i in range(n):
-        v = new_var(f"V_{i}")
-        om = new_var(f"w_{i}")
-        iu[i] = (len(w) - 2, len(w) - 1)
-        zs = []
-        if formulation == "barrier" and i >= 1:
-            for j in range(k):
-                zs.append(new_var(f"Z_{i}_{j}"))
-                iz[i, j] = len(w) - 1
-        gam = lookup.gamma_ca(x_s)
-        kap = lookup.kappa_ca(x_s)
+    def add_stage(self, i: int) -> None:
+        """Stage i: its inputs V_i, omega_i (and slacks Z_ij), its running cost, its
+        obstacle constraints and the Euler step to node i + 1."""
+        ca = self.ca
+        c_y, c_yd, c_sd, c_om, c_z, zeta, _, _ = self.weights
+        x_s, x_y, x_th = self.state
+        v = self.new_var(f"V_{i}")
+        om = self.new_var(f"w_{i}")
+        self.iu[i] = (len(self.w) - 2, len(self.w) - 1)
+        zs = self._slacks(i)
+        gam = self.lookup.gamma_ca(x_s)
+        kap = self.lookup.kappa_ca(x_s)
         e = x_th - gam
         d = 1.0 - x_y * kap
         f1 = v * ca.cos(e) / d
         f2 = v * ca.sin(e)
-        run = c_y * (x_y - p_yr) ** 2 + c_yd * f2**2 + c_sd * (f1 - p_vt) ** 2 + c_om * om**2
+        run = (c_y * (x_y - self.p_yr) ** 2 + c_yd * f2**2 + c_sd * (f1 - self.p_vt) ** 2
+               + c_om * om**2)
         for j, z in enumerate(zs):
             run = run - c_z * ca.log(z + zeta)
-            gobs[i, j] = add_con(ellipse(j, x_s, x_y, tau) - z * z, 0.0, 0.0)
-        if formulation == "hard" and i >= 1:
-            for j in range(k):
-                gobs[i, j] = add_con(ellipse(j, x_s, x_y, tau), 0.0, math.inf)
-        cost = cost + run * p_dt[i]
-        nxt_ds = new_var(f"ds_{i + 1}")
-        nxt_y = new_var(f"y_{i + 1}")
-        nxt_th = new_var(f"th_{i + 1}")
-        ix[i + 1] = (len(w) - 3, len(w) - 2, len(w) - 1)
-        nxt_s = s0 + nxt_ds
-        gdyn[i, 0] = add_con(nxt_s - (x_s + f1 * p_dt[i]), 0.0, 0.0)
-        gdyn[i, 1] = add_con(nxt_y - (x_y + f2 * p_dt[i]), 0.0, 0.0)
-        gdyn[i, 2] = add_con(nxt_th - (x_th + om * p_dt[i]), 0.0, 0.0)
-        x_s, x_y, x_th = nxt_s, nxt_y, nxt_th
-        tau = tau + p_dt[i]
-    if formulation == "hard":
-        for j in range(k):
-            gobs[n, j] = add_con(ellipse(j, x_s, x_y, tau), 0.0, math.inf)
-    cost = cost + _terminal_cost(ca, x_s, x_y - p_yr, x_th, lookup, t_y, t_e)
+            self.gobs[i, j] = self.add_con(self.ellipse(j, x_s, x_y, self.tau) - z * z,
+                                           0.0, 0.0)
+        if self.formulation == "hard" and i >= 1:
+            self.add_hard_constraints(i)
+        self.cost = self.cost + run * self.p_dt[i]
+        self._euler_step(i, f1, f2, om)
 
-    nlp = {"x": ca.vertcat(*w), "f": cost, "g": ca.vertcat(*g),
-           "p": ca.vertcat(p_x0, p_vt, p_dt, p_obs, p_w, p_yr)}
+    def _slacks(self, i: int) -> list[Any]:
+        """The slacks Z_ij of stage i (barrier formulation, stages 1..N-1; else none)."""
+        zs = []
+        if self.formulation == "barrier" and i >= 1:
+            for j in range(self.k):
+                zs.append(self.new_var(f"Z_{i}_{j}"))
+                self.iz[i, j] = len(self.w) - 1
+        return zs
+
+    def add_hard_constraints(self, i: int) -> None:
+        """The hard formulation's c_j >= 0 at node i (the current state and tau)."""
+        x_s, x_y, _ = self.state
+        for j in range(self.k):
+            self.gobs[i, j] = self.add_con(self.ellipse(j, x_s, x_y, self.tau), 0.0, math.inf)
+
+    def _euler_step(self, i: int, f1: Any, f2: Any, om: Any) -> None:
+        """Node i + 1 (ds relative to s_0, y, theta) and its Euler constraints from node i
+        with rates (f1, f2, omega); it becomes the current state, tau advances."""
+        x_s, x_y, x_th = self.state
+        dt = self.p_dt[i]
+        nxt_ds = self.new_var(f"ds_{i + 1}")
+        nxt_y = self.new_var(f"y_{i + 1}")
+        nxt_th = self.new_var(f"th_{i + 1}")
+        self.ix[i + 1] = (len(self.w) - 3, len(self.w) - 2, len(self.w) - 1)
+        nxt_s = self.p_x0[0] + nxt_ds
+        self.gdyn[i, 0] = self.add_con(nxt_s - (x_s + f1 * dt), 0.0, 0.0)
+        self.gdyn[i, 1] = self.add_con(nxt_y - (x_y + f2 * dt), 0.0, 0.0)
+        self.gdyn[i, 2] = self.add_con(nxt_th - (x_th + om * dt), 0.0, 0.0)
+        self.state = (nxt_s, nxt_y, nxt_th)
+        self.tau = self.tau + dt
+
+    def terminal_cost(self) -> Any:
+        """m(x_N) of the current (last) node."""
+        x_s, x_y, x_th = self.state
+        t_y, t_e = self.weights[6], self.weights[7]
+        return _terminal_cost(self.ca, x_s, x_y - self.p_yr, x_th, self.lookup, t_y, t_e)
+
+
+def _build_nlp(lookup: PathLookup, n: int, k: int, formulation: str,
+               ipopt_opts: dict[str, Any]) -> Nlp:
+    ca = _casadi()
+    t0 = time.perf_counter()
+    b = _NlpBuilder(ca, lookup, n, k, formulation)
+    for i in range(n):
+        b.add_stage(i)
+    if formulation == "hard":
+        b.add_hard_constraints(n)
+    cost = b.cost + b.terminal_cost()
+
+    nlp = {"x": ca.vertcat(*b.w), "f": cost, "g": ca.vertcat(*b.g),
+           "p": ca.vertcat(b.p_x0, b.p_vt, b.p_dt, b.p_obs, b.p_w, b.p_yr)}
     opts = {"ipopt": dict(ipopt_opts), "print_time": False, "error_on_fail": False,
             "record_time": False}
     solver = ca.nlpsol(f"ipopt_outer_n{n}_k{k}_{formulation}", "ipopt", nlp, opts)
-    return Nlp(solver=solver, n=n, k=k, formulation=formulation, n_w=len(w), n_g=len(g),
-                iu=iu, iz=iz, ix=ix, gdyn=gdyn, gobs=gobs, lbg=np.array(lbg),
-                ubg=np.array(ubg), build_s=time.perf_counter() - t0, lookup=lookup)
+    return Nlp(solver=solver, n=n, k=k, formulation=formulation, n_w=len(b.w), n_g=len(b.g),
+               iu=b.iu, iz=b.iz, ix=b.ix, gdyn=b.gdyn, gobs=b.gobs, lbg=np.array(b.lbg),
+               ubg=np.array(b.ubg), build_s=time.perf_counter() - t0, lookup=lookup)
 
 
 def _terminal_cost(ca: Any, s: Any, y: Any, th: Any, lookup: PathLookup, t_y: Any,
@@ -375,6 +420,53 @@ def get_nlp(lookup: PathLookup, n: int, k: int, formulation: str,
     while len(_SOLVERS) > 4 * _CACHE_SIZE:
         _SOLVERS.popitem(last=False)
     return nlp
+
+
+@dataclass(frozen=True)
+class NlpSolution:
+    """One Ipopt call (:func:`solve_nlp`): the primal solution ``w`` and multipliers
+    ``lam_x``, ``lam_g`` of the NLP, Ipopt's success flag, return status, iteration
+    count and final KKT error max(inf_pr, inf_du) (NaN before a first iterate), and
+    the call's wall and thread CPU times [s]."""
+
+    w: np.ndarray
+    lam_x: np.ndarray
+    lam_g: np.ndarray
+    success: bool
+    status: str
+    iterations: int
+    residual: float
+    wall_s: float
+    cpu_s: float
+
+
+def solve_nlp(nlp: Nlp, args: dict[str, Any]) -> NlpSolution:
+    """One call of ``nlp``'s Ipopt solver on ``args``, timed (wall and thread CPU)."""
+    t_ip = time.perf_counter()
+    c_ip = time.thread_time()
+    sol = nlp.solver(**args)
+    ipopt_cpu_s = time.thread_time() - c_ip
+    ipopt_s = time.perf_counter() - t_ip
+    stats = nlp.solver.stats()
+    return NlpSolution(
+        w=np.asarray(sol["x"], dtype=np.float64).ravel(),
+        lam_x=np.asarray(sol["lam_x"], dtype=np.float64).ravel(),
+        lam_g=np.asarray(sol["lam_g"], dtype=np.float64).ravel(),
+        success=bool(stats.get("success", False)),
+        status=str(stats.get("return_status", "unknown")),
+        iterations=int(stats.get("iter_count", -1)),
+        residual=_final_kkt_error(stats), wall_s=ipopt_s, cpu_s=ipopt_cpu_s)
+
+
+def _final_kkt_error(stats: dict[str, Any]) -> float:
+    """max(inf_pr, inf_du) of Ipopt's last iterate in ``stats`` (NaN: no iterate)."""
+    it = stats.get("iterations")
+    if isinstance(it, dict):
+        pr = it.get("inf_pr") or []
+        du = it.get("inf_du") or []
+        if pr and du:
+            return float(max(pr[-1], du[-1]))
+    return float("nan")
 
 
 def pack_obstacles(obstacles: Obstacles) -> np.ndarray:

@@ -54,6 +54,7 @@ from controllers.two_loop.outer.ipopt_nlp import (
     get_nlp,
     pack_obstacles,
     path_lookup,
+    solve_nlp,
     weights_from_params,
 )
 from controllers.two_loop.outer.ipopt_warmstart import Solution, shift_solution, with_obstacles
@@ -61,7 +62,7 @@ from controllers.two_loop.outer.params import FORMULATIONS, IpoptParams
 from controllers.two_loop.outer.protocol import OuterPlan
 from controllers.two_loop.outer.target_ramp import CruiseSetPoint, TargetSpeedRamp
 
-__all__ = ["FORMULATIONS", "IpoptOuter", "UpdateStats"]
+__all__ = ["FORMULATIONS", "IpoptOuter", "IpoptOuterOptions", "UpdateStats"]
 
 
 @dataclass
@@ -79,6 +80,27 @@ class UpdateStats:
     ipopt_cpu_s: float  # this thread's CPU time in the Ipopt call (robust to machine load)
 
 
+@dataclass(frozen=True)
+class IpoptOuterOptions:
+    """The solver settings of :class:`IpoptOuter` outside :class:`IpoptParams`.
+
+    max_wall_s: Ipopt's max_wall_time [s] (None: unlimited). omega_max_radps,
+    v_max_factor, v_cap_floor_mps: the input bounds |omega| <= omega_max_radps [rad/s]
+    and 0 <= V <= max(v_max_factor Vt, v_cap_floor_mps) [m/s]. brake_decel_mps2: the
+    deceleration [m/s²] of the brake-along-lane fallback (None: the params'
+    ``fallback_decel_mps2``). warm_mu: Ipopt's mu_init for warm-started solves.
+    path_grid_m: the breakpoint spacing [m] of the path lookup for paths without knots.
+    """
+
+    max_wall_s: float | None = None
+    omega_max_radps: float = 0.5
+    v_max_factor: float = 1.5
+    v_cap_floor_mps: float = 5.0
+    brake_decel_mps2: float | None = None
+    warm_mu: float = 1e-6
+    path_grid_m: float = 1.0
+
+
 class IpoptOuter(CruiseSetPoint):
     """OuterPlanner: the J3 SPMM OCP solved by Ipopt every update (see the module doc).
 
@@ -88,25 +110,22 @@ class IpoptOuter(CruiseSetPoint):
     and tol (acceptable_tol 1e2 * tol). n_slots: the number of obstacle slots K of the
     controller (the NLP is built for the K obstacles of each update; ``n_slots`` sets
     :meth:`stage_unknowns`'s layout and what :meth:`prepare` builds by default).
-    max_wall_s: Ipopt's max_wall_time (None: unlimited). omega_max_radps,
-    v_max_factor, v_cap_floor_mps: input bounds. brake_decel_mps2: deceleration of
-    the brake-along-lane fallback (default ``params.fallback_decel_mps2``). warm_mu:
-    Ipopt's mu_init for warm-started solves. weights, stage_times_s: override the
-    ones derived from ``params`` (tests; e.g. C/GMRES's current grown horizon).
+    options: the solver settings outside ``params`` (:class:`IpoptOuterOptions`: Ipopt's
+    wall-time limit, the input bounds, the fallback's deceleration, the warm mu_init,
+    the path grid; None: its defaults). weights, stage_times_s: override the ones
+    derived from ``params`` (tests; e.g. C/GMRES's current grown horizon).
     """
 
     updates_per_period = 1  # one NLP solve per control period
 
-    def __init__(self, path: PathLike, params: IpoptParams, n_slots: int = 3, *,  # noqa: PLR0913
-                 max_wall_s: float | None = None,
-                 omega_max_radps: float = 0.5, v_max_factor: float = 1.5,
-                 v_cap_floor_mps: float = 5.0, brake_decel_mps2: float | None = None,
-                 warm_mu: float = 1e-6, path_grid_m: float = 1.0,
-                 weights: J3Weights | None = None, stage_times_s: np.ndarray | None = None) -> None:
+    def __init__(self, path: PathLike, params: IpoptParams, n_slots: int = 3, *,
+                 options: IpoptOuterOptions | None = None, weights: J3Weights | None = None,
+                 stage_times_s: np.ndarray | None = None) -> None:
         if not isinstance(params, IpoptParams):
             raise TypeError(f"IpoptOuter needs IpoptParams, got {type(params).__name__}")
         if not (isinstance(n_slots, int) and n_slots >= 0):
             raise ValueError(f"n_slots must be an int >= 0, got {n_slots!r}")
+        opts = options if options is not None else IpoptOuterOptions()
         self.path = path
         self.params = params
         self.n_slots = n_slots
@@ -116,12 +135,12 @@ class IpoptOuter(CruiseSetPoint):
         self.tau = np.asarray(tau, dtype=np.float64)
         self.n = int(self.tau.shape[0] - 1)
         self.dtau = np.diff(self.tau)
-        self.omega_max = float(omega_max_radps)
-        self.v_max_factor = float(v_max_factor)
-        self.v_cap_floor = float(v_cap_floor_mps)
-        self.brake_decel = float(brake_decel_mps2 if brake_decel_mps2 is not None
+        self.omega_max = float(opts.omega_max_radps)
+        self.v_max_factor = float(opts.v_max_factor)
+        self.v_cap_floor = float(opts.v_cap_floor_mps)
+        self.brake_decel = float(opts.brake_decel_mps2 if opts.brake_decel_mps2 is not None
                                  else params.fallback_decel_mps2)
-        self.lookup = path_lookup(path, path_grid_m)
+        self.lookup = path_lookup(path, opts.path_grid_m)
         self._cold_opts: dict[str, Any] = {
             "print_level": 0, "sb": "yes", "max_iter": int(params.max_iter),
             "tol": float(params.tol), "acceptable_tol": 100.0 * float(params.tol),
@@ -130,11 +149,11 @@ class IpoptOuter(CruiseSetPoint):
             # algorithmic derivatives) and the MUMPS sparse linear solver.
             "hessian_approximation": "exact", "linear_solver": "mumps",
         }
-        if max_wall_s is not None:
-            self._cold_opts["max_wall_time"] = float(max_wall_s)
+        if opts.max_wall_s is not None:
+            self._cold_opts["max_wall_time"] = float(opts.max_wall_s)
         self._warm_opts = dict(self._cold_opts)
         self._warm_opts.update({
-            "warm_start_init_point": "yes", "mu_init": float(warm_mu),
+            "warm_start_init_point": "yes", "mu_init": float(opts.warm_mu),
             "warm_start_bound_push": 1e-6, "warm_start_bound_frac": 1e-6,
             "warm_start_slack_bound_push": 1e-6, "warm_start_slack_bound_frac": 1e-6,
             "warm_start_mult_bound_push": 1e-6,
@@ -213,7 +232,7 @@ class IpoptOuter(CruiseSetPoint):
 
     # -- one update ---------------------------------------------------------
 
-    def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,  # noqa: PLR0915
+    def update(self, t_s: float, x0: np.ndarray, obstacles: Obstacles,
                target_speed_mps: float, dt_s: float,
                lateral_reference_m: float = 0.0,
                lateral_weight: float | None = None) -> OuterPlan:
@@ -228,20 +247,50 @@ class IpoptOuter(CruiseSetPoint):
         nlp = self._nlp(k, warm)
         t_start = time.perf_counter()
 
+        args = self._solver_args(nlp, t_s, x0, vt, obs, yr, lateral_weight)
+        res = solve_nlp(nlp, args)
+        residual = res.residual
+        fallback = not (res.success and np.all(np.isfinite(res.w))
+                        and np.all(np.isfinite(res.lam_g)))
+        if not fallback:
+            accepted = self._unpack(nlp, t_s, x0, obs, res.w, res.lam_x, res.lam_g)
+            self._last_success_t = float(t_s)
+        else:
+            self.fallback_count += 1
+            accepted = self._fallback_plan(t_s, x0, vt, obs)
+            if not np.isfinite(residual):
+                residual = math.inf  # Ipopt stopped before a first iterate: never NaN
+        self._prev = accepted
+        self._vt = vt
+        self._t_prev = float(t_s)
+        plan = OuterPlan(stage_times_s=self.tau.copy(), states=accepted.x.copy(),
+                         speeds_mps=accepted.u[:, 0].copy(),
+                         headings_rad=accepted.x[:-1, 2].copy(), residual=float(residual),
+                         fallback=fallback, guard_fired=0,
+                         solve_s=time.perf_counter() - t_start, target_speed_mps=vt)
+        self.update_count += 1
+        self.last_iterations = res.iterations
+        self.last_status = res.status
+        self.history.append(UpdateStats(t_s=float(t_s), k=k, iterations=res.iterations,
+                                        status=res.status, success=res.success,
+                                        residual=plan.residual, solve_s=plan.solve_s,
+                                        ipopt_s=res.wall_s, ipopt_cpu_s=res.cpu_s))
+        return plan
+
+    def _solver_args(self, nlp: Nlp, t_s: float, x0: np.ndarray, vt: float, obs: np.ndarray,
+                     yr: float, lateral_weight: float | None) -> dict[str, Any]:
+        """The arguments of the Ipopt call of an update at ``t_s`` [s] from state ``x0``
+        with OCP target speed ``vt`` [m/s], packed obstacles ``obs``, lateral reference
+        ``yr`` [m] and Cy override ``lateral_weight``: the warm start (the previous
+        solution shifted to now, else a lane-following guess, with multipliers when
+        warm), the input bounds and the NLP parameter vector."""
+        warm = self._prev is not None
         if self._prev is not None:
             guess = shift_solution(self._prev, t_s, self.tau, x0, obs, self.weights)
         else:
             guess = self._initial_guess(t_s, x0, vt, obs)
         w0, lam_x0, lam_g0 = self._pack_guess(nlp, guess, x0)
-        v_hi = max(self.v_max_factor * vt, self.v_cap_floor)
-        lbx = np.full(nlp.n_w, -np.inf)
-        ubx = np.full(nlp.n_w, np.inf)
-        lbx[nlp.iu[:, 0]] = 0.0
-        ubx[nlp.iu[:, 0]] = v_hi
-        lbx[nlp.iu[:, 1]] = -self.omega_max
-        ubx[nlp.iu[:, 1]] = self.omega_max
-        zi = nlp.iz[nlp.iz >= 0]
-        lbx[zi] = 0.0
+        lbx, ubx = self._input_bounds(nlp, vt)
         w0 = np.clip(w0, lbx, ubx)
         wts = self.weights.as_array()
         if lateral_weight is not None:
@@ -252,50 +301,21 @@ class IpoptOuter(CruiseSetPoint):
         if warm:
             args["lam_x0"] = lam_x0
             args["lam_g0"] = lam_g0
-        t_ip = time.perf_counter()
-        c_ip = time.thread_time()
-        sol = nlp.solver(**args)
-        ipopt_cpu_s = time.thread_time() - c_ip
-        ipopt_s = time.perf_counter() - t_ip
-        stats = nlp.solver.stats()
-        success = bool(stats.get("success", False))
-        status = str(stats.get("return_status", "unknown"))
-        iters = int(stats.get("iter_count", -1))
-        residual = _final_kkt_error(stats)
-        w = np.asarray(sol["x"], dtype=np.float64).ravel()
-        lam_x = np.asarray(sol["lam_x"], dtype=np.float64).ravel()
-        lam_g = np.asarray(sol["lam_g"], dtype=np.float64).ravel()
-        fallback = not (success and np.all(np.isfinite(w)) and np.all(np.isfinite(lam_g)))
-        if not fallback:
-            accepted = self._unpack(nlp, t_s, x0, obs, w, lam_x, lam_g)
-            self._last_success_t = float(t_s)
-        else:
-            self.fallback_count += 1
-            accepted = self._fallback_plan(t_s, x0, vt, obs)
-            if not np.isfinite(residual):
-                residual = math.inf  # Ipopt stopped before a first iterate: never NaN
-        self._prev = accepted
-        self._vt = vt
-        self._t_prev = float(t_s)
-        plan = OuterPlan(
-            stage_times_s=self.tau.copy(),
-            states=accepted.x.copy(),
-            speeds_mps=accepted.u[:, 0].copy(),
-            headings_rad=accepted.x[:-1, 2].copy(),
-            residual=float(residual),
-            fallback=fallback,
-            guard_fired=0,
-            solve_s=time.perf_counter() - t_start,
-            target_speed_mps=vt,
-        )
-        self.update_count += 1
-        self.last_iterations = iters
-        self.last_status = status
-        self.history.append(UpdateStats(t_s=float(t_s), k=k, iterations=iters, status=status,
-                                        success=success, residual=plan.residual,
-                                        solve_s=plan.solve_s, ipopt_s=ipopt_s,
-                                        ipopt_cpu_s=ipopt_cpu_s))
-        return plan
+        return args
+
+    def _input_bounds(self, nlp: Nlp, vt: float) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) bounds of the NLP's variables: 0 <= V <= max(v_max_factor vt,
+        v_cap_floor) [m/s], |omega| <= omega_max [rad/s], Z >= 0, the nodes free."""
+        v_hi = max(self.v_max_factor * vt, self.v_cap_floor)
+        lbx = np.full(nlp.n_w, -np.inf)
+        ubx = np.full(nlp.n_w, np.inf)
+        lbx[nlp.iu[:, 0]] = 0.0
+        ubx[nlp.iu[:, 0]] = v_hi
+        lbx[nlp.iu[:, 1]] = -self.omega_max
+        ubx[nlp.iu[:, 1]] = self.omega_max
+        zi = nlp.iz[nlp.iz >= 0]
+        lbx[zi] = 0.0
+        return lbx, ubx
 
     def stage_unknowns(self, n_slots: int | None = None) -> np.ndarray:
         """The last accepted solution in C/GMRES's layout U = [V, omega, Z_1..K, mu_1..K]_i.
@@ -369,10 +389,16 @@ class IpoptOuter(CruiseSetPoint):
     def _initial_guess(self, t_s: float, x0: np.ndarray, vt: float, obs: np.ndarray) -> Solution:
         speeds = np.full(self.n, vt)
         x, u = self._rollout(x0, speeds, follow_lane=True)
+        return self._lane_solution(t_s, x, u, obs)
+
+    def _lane_solution(self, t_s: float, x: np.ndarray, u: np.ndarray,
+                       obs: np.ndarray) -> Solution:
+        """The solution of the rollout ``x``, ``u`` at ``t_s`` [s], zero multipliers, its
+        slacks and multipliers for the obstacles ``obs`` from :func:`with_obstacles`."""
         return with_obstacles(Solution(t_s, self.tau.copy(), x, u, np.zeros((self.n, 0)),
-                                         np.zeros((0, OBS_COLS)), np.zeros((self.n, 3)),
-                                         np.zeros((self.n + 1, 0)), np.zeros((self.n, 2)),
-                                         np.zeros((self.n, 0))), obs)
+                                       np.zeros((0, OBS_COLS)), np.zeros((self.n, 3)),
+                                       np.zeros((self.n + 1, 0)), np.zeros((self.n, 2)),
+                                       np.zeros((self.n, 0))), obs)
 
     def _fallback_plan(self, t_s: float, x0: np.ndarray, vt: float, obs: np.ndarray) -> Solution:
         prev = self._prev
@@ -387,10 +413,7 @@ class IpoptOuter(CruiseSetPoint):
         v0 = float(prev.u[0, 0]) if prev is not None else vt
         speeds = np.maximum(v0 - self.brake_decel * self.tau[:-1], 0.0)
         x, u = self._rollout(x0, speeds, follow_lane=True)
-        return with_obstacles(Solution(t_s, self.tau.copy(), x, u, np.zeros((self.n, 0)),
-                                         np.zeros((0, OBS_COLS)), np.zeros((self.n, 3)),
-                                         np.zeros((self.n + 1, 0)), np.zeros((self.n, 2)),
-                                         np.zeros((self.n, 0))), obs)
+        return self._lane_solution(t_s, x, u, obs)
 
     def _pack_guess(self, nlp: Nlp, g: Solution, x0: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -441,13 +464,3 @@ class IpoptOuter(CruiseSetPoint):
         lam_dyn = lam_g[nlp.gdyn.ravel()].reshape(n, 3)
         return Solution(float(t_s), self.tau.copy(), x, u, z, obs.copy(), lam_dyn, lam_obs,
                          lam_u, lam_z)
-
-
-def _final_kkt_error(stats: dict[str, Any]) -> float:
-    it = stats.get("iterations")
-    if isinstance(it, dict):
-        pr = it.get("inf_pr") or []
-        du = it.get("inf_du") or []
-        if pr and du:
-            return float(max(pr[-1], du[-1]))
-    return float("nan")

@@ -170,7 +170,7 @@ def stage_geometry(x: np.ndarray, u: np.ndarray, prm: np.ndarray, meta: np.ndarr
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,  # noqa: PLR0915
+def stage_eval_geo(x: np.ndarray, u: np.ndarray, p: np.ndarray, tau: float,  # noqa: PLR0915 - a numba kernel on the hot path, inlined whole
                    with_constraints: bool, prm: np.ndarray, obs: np.ndarray, czw: np.ndarray,
                    geo: np.ndarray, f_out: np.ndarray, hx_out: np.ndarray,
                    hu_out: np.ndarray) -> float:
@@ -319,7 +319,7 @@ def terminal_eval(x: np.ndarray, prm: np.ndarray, meta: np.ndarray, coef: np.nda
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=_FM)
-def ocp_residual(uvec: np.ndarray, x0: np.ndarray, horizon: float, tshift: float,  # noqa: C901, PLR0912, PLR0915
+def ocp_residual(uvec: np.ndarray, x0: np.ndarray, horizon: float, tshift: float,  # noqa: C901, PLR0912, PLR0915 - a numba kernel on the hot path, one loop
                  prm: np.ndarray, obs: np.ndarray, w: np.ndarray, meta: np.ndarray,
                  coef: np.ndarray, xs: np.ndarray, ps: np.ndarray, f_out: np.ndarray) -> None:
     """F(U, x0, t) (length N m) into ``f_out``; states (N+1, 3) into ``xs``, costates into ``ps``.

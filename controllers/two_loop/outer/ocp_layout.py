@@ -73,7 +73,7 @@ def barrier_scale(params: OcpParams, speed_scale_mps: float) -> float:
     return min(max(v / params.barrier_speed_mps, params.barrier_min_scale), 1.0)
 
 
-def pack_params(params: OcpParams, target_speed_mps: float,  # noqa: PLR0913
+def pack_params(params: OcpParams, target_speed_mps: float,  # noqa: PLR0913 - a keyword per packed field
                 lateral_reference_m: float = 0.0, lateral_reference_rate_mps: float = 0.0,
                 lateral_weight: float | None = None, lateral_weight_rate: float = 0.0,
                 row_scaling: bool = False, barrier_weight_scale: float | None = None,
@@ -122,7 +122,7 @@ def pack_params(params: OcpParams, target_speed_mps: float,  # noqa: PLR0913
     return out
 
 
-def obstacle_row(s_m: float, y_m: float, a_m: float, b_m: float, *, vs_mps: float = 0.0,  # noqa: PLR0913
+def obstacle_row(s_m: float, y_m: float, a_m: float, b_m: float, *, vs_mps: float = 0.0,  # noqa: PLR0913 - a keyword per column of the kernels' obstacle row
                  vy_mps: float = 0.0, active: bool = True, weight: float = 1.0,
                  weight_rate_1ps: float = 0.0) -> np.ndarray:
     """One slot of the obstacle table (OBS_COLS,): an ellipse centred at (s, y) [m] with

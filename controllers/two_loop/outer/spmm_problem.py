@@ -32,7 +32,7 @@ class SpmmProblem:
         """N (2 + 2K): the length of U with K obstacle slots."""
         return self.params.n_stages * stage_width(n_slots)
 
-    def residual(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray,  # noqa: PLR0913
+    def residual(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray,  # noqa: PLR0913 - a hot path: the kernels' flat arrays and scalars
                  target_speed: float,
                  horizon: float | None = None, tshift: float = 0.0, scaled: bool = False,
                  lateral_reference_m: float = 0.0,
@@ -51,7 +51,7 @@ class SpmmProblem:
                      float(tshift), prm, obs, self.w, self.meta, self.coef, xs, ps, f)
         return f, xs, ps[:, :3].copy()
 
-    def objective(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray,  # noqa: PLR0913
+    def objective(self, uvec: np.ndarray, x0: np.ndarray, obs: np.ndarray,  # noqa: PLR0913 - a hot path: the kernels' flat arrays and scalars
                   target_speed: float,
                   horizon: float | None = None, tshift: float = 0.0,
                   with_multipliers: bool = False, lateral_reference_m: float = 0.0,

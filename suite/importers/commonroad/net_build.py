@@ -216,40 +216,106 @@ def _links(road: RoadRows, nodes_in: dict[str, list[int]], nodes_out: dict[str, 
     return links
 
 
-def plan_net(road: RoadRows, params: NetParams, path: str,  # noqa: C901 (issue 37: still to split)
-             speeds: SpeedPlan | None = None) -> BuiltNet:
-    """The net's edges, nodes and connections (no file yet); lane speeds from
-    ``speeds`` (one per lane of each row; ``None``: ``SPEED_LIMIT_MPS``)."""
-    rows = road.rows
-    conns = _row_connections(road)
+Connection = tuple[tuple[str, int], tuple[str, int]]
+"""A lane connection ((from edge, lane), (to edge, lane))."""
+RowEnd = tuple[str, int]
+"""One end of a row: ("s", row) its start, ("e", row) its end."""
+
+
+def _row_node_ids(road: RoadRows, conns: set[tuple[tuple[int, int], tuple[int, int]]],
+                  path: str) -> dict[RowEnd, str]:
+    """The node id of each row end: the end of a row and the starts of the rows it
+    connects to are one node (module docstring). Raises ImportFailure for a row whose
+    start and end are one node."""
     uf = _Union()
-    for r in range(len(rows)):
+    for r in range(len(road.rows)):
         uf.find(("s", r))
         uf.find(("e", r))
     for (ra, _), (rb, _) in conns:
         uf.union(("e", ra), ("s", rb))
     node_id = {k: f"n{uf.find(k)[0]}{uf.find(k)[1]}" for k in list(uf.parent)}
-    for r, row in enumerate(rows):
+    for r, row in enumerate(road.rows):
         if node_id[("s", r)] == node_id[("e", r)]:
             raise ImportFailure(path, f"lanelet {row.label}", "its row starts where it ends "
                                 "(a loop of successors): it cannot become an edge")
+    return node_id
+
+
+def _node_positions(node_id: dict[RowEnd, str], lanes: list[list[FloatArray]]
+                    ) -> dict[str, tuple[float, float]]:
+    """Each node's position (x, y) [m]: the mean of the ends of the row lanes
+    ``lanes[row]`` that meet there."""
     ends: dict[str, list[FloatArray]] = {}
-    lanes = [[_dedupe(ll.centre_xy_m) for ll in row.lanelets] for row in rows]
-    for r in range(len(rows)):
-        ends.setdefault(node_id[("s", r)], []).extend(xy[0] for xy in lanes[r])
-        ends.setdefault(node_id[("e", r)], []).extend(xy[-1] for xy in lanes[r])
-    nodes = {n: (float(np.mean([p[0] for p in pts])), float(np.mean([p[1] for p in pts])))
-             for n, pts in ends.items()}
+    for r, row_lanes in enumerate(lanes):
+        ends.setdefault(node_id[("s", r)], []).extend(xy[0] for xy in row_lanes)
+        ends.setdefault(node_id[("e", r)], []).extend(xy[-1] for xy in row_lanes)
+    return {n: (float(np.mean([p[0] for p in pts])), float(np.mean([p[1] for p in pts])))
+            for n, pts in ends.items()}
+
+
+def _rows_at_nodes(n_rows: int, node_id: dict[RowEnd, str]
+                   ) -> tuple[dict[str, list[int]], dict[str, list[int]]]:
+    """(rows entering each node, rows leaving each node), in row order."""
     nodes_in: dict[str, list[int]] = {}
     nodes_out: dict[str, list[int]] = {}
-    for r in range(len(rows)):
+    for r in range(n_rows):
         nodes_in.setdefault(node_id[("e", r)], []).append(r)
         nodes_out.setdefault(node_id[("s", r)], []).append(r)
-    succ: dict[int, set[int]] = {r: set() for r in range(len(rows))}
-    pred: dict[int, set[int]] = {r: set() for r in range(len(rows))}
+    return nodes_in, nodes_out
+
+
+def _row_neighbours(n_rows: int, conns: set[tuple[tuple[int, int], tuple[int, int]]]
+                    ) -> tuple[dict[int, set[int]], dict[int, set[int]]]:
+    """(successor rows, predecessor rows) of each row."""
+    succ: dict[int, set[int]] = {r: set() for r in range(n_rows)}
+    pred: dict[int, set[int]] = {r: set() for r in range(n_rows)}
     for (ra, _), (rb, _) in conns:
         succ[ra].add(rb)
         pred[rb].add(ra)
+    return succ, pred
+
+
+def _downstream_extension(base: NetEdge, nodes: dict[str, tuple[float, float]],
+                          length_m: float) -> tuple[NetEdge, set[Connection]]:
+    """The straight edge of ``length_m`` [m] continuing ``base`` past its end (its end
+    node is added to ``nodes``) and its lane connections from ``base``."""
+    n = len(base.lanes_xy_m)
+    d = _direction(list(base.lanes_xy_m), at_end=True) * length_m
+    eid = f"{base.edge_id}-extension"
+    end_node = f"{eid}-end"
+    nodes[end_node] = (nodes[base.to_node][0] + d[0], nodes[base.to_node][1] + d[1])
+    edge = NetEdge(eid, base.to_node, end_node,
+                   tuple(np.array([xy[-1], xy[-1] + d]) for xy in base.lanes_xy_m),
+                   base.widths_m, base.shoulder, None, (None,) * n, base.link, base.speeds_mps)
+    return edge, {((base.edge_id, i), (eid, i)) for i in range(n)}
+
+
+def _upstream_approach(base: NetEdge, nodes: dict[str, tuple[float, float]],
+                       length_m: float) -> tuple[NetEdge, set[Connection]]:
+    """The straight edge of ``length_m`` [m] leading into ``base`` at its start (its
+    start node is added to ``nodes``) and its lane connections into ``base``."""
+    n = len(base.lanes_xy_m)
+    d = _direction(list(base.lanes_xy_m), at_end=False) * length_m
+    eid = f"{base.edge_id}-approach"
+    start_node = f"{eid}-start"
+    nodes[start_node] = (nodes[base.from_node][0] - d[0], nodes[base.from_node][1] - d[1])
+    edge = NetEdge(eid, start_node, base.from_node,
+                   tuple(np.array([xy[0] - d, xy[0]]) for xy in base.lanes_xy_m),
+                   base.widths_m, base.shoulder, None, (None,) * n, base.link, base.speeds_mps)
+    return edge, {((eid, i), (base.edge_id, i)) for i in range(n)}
+
+
+def plan_net(road: RoadRows, params: NetParams, path: str,
+             speeds: SpeedPlan | None = None) -> BuiltNet:
+    """The net's edges, nodes and connections (no file yet); lane speeds from
+    ``speeds`` (one per lane of each row; ``None``: ``SPEED_LIMIT_MPS``)."""
+    rows = road.rows
+    conns = _row_connections(road)
+    node_id = _row_node_ids(road, conns, path)
+    lanes = [[_dedupe(ll.centre_xy_m) for ll in row.lanelets] for row in rows]
+    nodes = _node_positions(node_id, lanes)
+    nodes_in, nodes_out = _rows_at_nodes(len(rows), node_id)
+    succ, pred = _row_neighbours(len(rows), conns)
     links = _links(road, nodes_in, nodes_out, succ, pred)
     edges: dict[str, NetEdge] = {}
     row_edges = []
@@ -263,31 +329,18 @@ def plan_net(road: RoadRows, params: NetParams, path: str,  # noqa: C901 (issue 
                              speeds.lanes_mps[r] if speeds is not None else ())
     connections = {((row_edges[ra], i), (row_edges[rb], j)) for (ra, i), (rb, j) in conns}
     downstream, upstream = [], []
-    for r in range(len(rows)):
-        base = edges[row_edges[r]]
-        n = len(base.lanes_xy_m)
+    for r, row_edge in enumerate(row_edges):
+        base = edges[row_edge]
         if not nodes_out.get(node_id[("e", r)]):
-            d = _direction(list(base.lanes_xy_m), at_end=True) * params.downstream_extension_m
-            eid = f"{base.edge_id}-extension"
-            end_node = f"{eid}-end"
-            nodes[end_node] = (nodes[base.to_node][0] + d[0], nodes[base.to_node][1] + d[1])
-            edges[eid] = NetEdge(eid, base.to_node, end_node,
-                                 tuple(np.array([xy[-1], xy[-1] + d]) for xy in base.lanes_xy_m),
-                                 base.widths_m, base.shoulder, None, (None,) * n, base.link,
-                                 base.speeds_mps)
-            connections |= {((base.edge_id, i), (eid, i)) for i in range(n)}
-            downstream.append(eid)
+            ext, ext_conns = _downstream_extension(base, nodes, params.downstream_extension_m)
+            edges[ext.edge_id] = ext
+            connections |= ext_conns
+            downstream.append(ext.edge_id)
         if not nodes_in.get(node_id[("s", r)]):
-            d = _direction(list(base.lanes_xy_m), at_end=False) * params.upstream_extension_m
-            eid = f"{base.edge_id}-approach"
-            start_node = f"{eid}-start"
-            nodes[start_node] = (nodes[base.from_node][0] - d[0], nodes[base.from_node][1] - d[1])
-            edges[eid] = NetEdge(eid, start_node, base.from_node,
-                                 tuple(np.array([xy[0] - d, xy[0]]) for xy in base.lanes_xy_m),
-                                 base.widths_m, base.shoulder, None, (None,) * n, base.link,
-                                 base.speeds_mps)
-            connections |= {((eid, i), (base.edge_id, i)) for i in range(n)}
-            upstream.append(eid)
+            ext, ext_conns = _upstream_approach(base, nodes, params.upstream_extension_m)
+            edges[ext.edge_id] = ext
+            connections |= ext_conns
+            upstream.append(ext.edge_id)
     return BuiltNet(edges, tuple(sorted(connections)), tuple(row_edges), tuple(downstream),
                     tuple(upstream), nodes)
 

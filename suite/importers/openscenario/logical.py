@@ -49,27 +49,38 @@ def declared_types(root: Any) -> dict[str, str]:
             for d in ([] if decls is None else decls.findall("ParameterDeclaration"))}
 
 
-def catalog_value(value: Any, kind: str | None) -> Typed:  # noqa: PLR0911
+def catalog_value(value: Any, kind: str | None) -> Typed:
     """A parameter's value (an XML string or a resolved value) as the catalog holds it,
     typed by the declaration's ``kind``; a value that is not of its type stays a string
     (the import refuses it, naming the parameter)."""
-    try:
-        if kind in INT_TYPES:
-            f = float(value)
-            return int(f) if f.is_integer() else str(value)
-        if kind == "double":
-            f = float(value)
-            return f if math.isfinite(f) else str(value)
-    except (TypeError, ValueError):
-        return str(value)
+    if kind in NUMBER_TYPES:
+        return _number_value(value, kind)
     if kind == "boolean":
-        if isinstance(value, bool):
-            return value
-        text = str(value).strip().lower()
-        return text == "true" if text in ("true", "false") else str(value)
+        return _boolean_value(value)
     if isinstance(value, float) and value.is_integer():
         return str(int(value))
     return value if isinstance(value, str) else str(value)
+
+
+def _number_value(value: Any, kind: str | None) -> Typed:
+    """:func:`catalog_value` of an integer kind (an int when integral) or a double (a
+    finite float); otherwise the value as a string."""
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        return str(value)
+    if kind in INT_TYPES:
+        return int(f) if f.is_integer() else str(value)
+    return f if math.isfinite(f) else str(value)
+
+
+def _boolean_value(value: Any) -> Typed:
+    """:func:`catalog_value` of a boolean: a bool, or "true"/"false" in any case and
+    spacing; otherwise the value as a string."""
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    return text == "true" if text in ("true", "false") else str(value)
 
 
 def override_text(value: Any) -> str:

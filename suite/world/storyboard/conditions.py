@@ -21,10 +21,22 @@ StateTest = Callable[[sb.StateCondition], bool]
 PlaceY = Callable[[sb.RoutePosition], float]
 
 
-def _entity_value(check: object, me: EntityView, views: Mapping[str, EntityView],  # noqa: PLR0911
+def _entity_value(check: object, me: EntityView, views: Mapping[str, EntityView],
                   place_y: PlaceY) -> float:
-    """The measured value of an entity condition for triggering entity ``me``."""
+    """The measured value of an entity condition for triggering entity ``me`` (NaN for
+    a condition on another entity that is not there)."""
+    own = _own_value(check, me, place_y)
+    if own is not None:
+        return own
     ref = views.get(getattr(check, "entity_ref", ""), None)
+    if ref is None:
+        return math.nan
+    return _relative_value(check, me, ref)
+
+
+def _own_value(check: object, me: EntityView, place_y: PlaceY) -> float | None:
+    """The value of a condition on ``me`` alone: its speed [m/s], the distance it
+    travelled [m], its distance to a position [m]; None for any other condition."""
     if isinstance(check, sb.SpeedCondition):
         return me.speed_mps
     if isinstance(check, sb.TraveledDistanceCondition):
@@ -32,8 +44,12 @@ def _entity_value(check: object, me: EntityView, views: Mapping[str, EntityView]
     if isinstance(check, sb.ReachPositionCondition):
         return math.hypot(me.pos_m - check.position.pos_m,
                           me.y_m - place_y(check.position))
-    if ref is None:
-        return math.nan
+    return None
+
+
+def _relative_value(check: object, me: EntityView, ref: EntityView) -> float:
+    """The value of a condition on ``me`` relative to entity ``ref``: their distance
+    [m], headway [s], time to collision [s] or speed difference [m/s]."""
     if isinstance(check, sb.RelativeDistanceCondition):
         return relative_distance_m(me, ref, check.distance_type, check.freespace)
     if isinstance(check, sb.TimeHeadwayCondition):
