@@ -57,7 +57,7 @@ def ego_xy(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x, y
 
 
-def _trace(steps: int, dt: float, seed: int, collision: bool) -> Trace:  # noqa: PLR0915
+def _trace(steps: int, dt: float, seed: int, collision: bool) -> Trace:
     rng = np.random.default_rng(seed)
     tr = Trace.allocate(steps, EXTRA)
     t = (tr.step + 1) * dt
@@ -66,6 +66,17 @@ def _trace(steps: int, dt: float, seed: int, collision: bool) -> Trace:  # noqa:
     psi = np.arctan2(ys - y, xs - x)
     lane_index = np.where(y > LANE_W / 2, 2, 1)
     tr.t_s[:] = t
+    _fill_ego(tr, rng, t, psi, lane_index)
+    _fill_scene(tr, x, lane_index, collision)
+    _fill_controller(tr, rng, t)
+    return tr
+
+
+def _fill_ego(tr: Trace, rng: np.random.Generator, t: np.ndarray, psi: np.ndarray,
+              lane_index: np.ndarray) -> None:
+    """The ego's columns: the lane change of :func:`ego_xy` at constant speed."""
+    steps = tr.step.shape[0]
+    x, y = ego_xy(t)
     ego = tr.ego
     ego.x_m[:], ego.y_m[:], ego.psi_rad[:] = x, y, psi
     ego.u_mps[:], ego.v_mps[:], ego.r_radps[:] = EGO_SPEED, 0.0, np.gradient(psi, t)
@@ -79,7 +90,9 @@ def _trace(steps: int, dt: float, seed: int, collision: bool) -> Trace:  # noqa:
     ego.sumo_front_y_m[:] = y + EGO.cg_to_front_bumper_m * np.sin(psi)
     ego.sumo_heading_rad[:] = psi
 
-    # the stalled car's gap and SUMO's TTC
+
+def _fill_scene(tr: Trace, x: np.ndarray, lane_index: np.ndarray, collision: bool) -> None:
+    """The safety and decision columns: the stalled car's gap and SUMO's TTC, the pass."""
     front = x + EGO.cg_to_front_bumper_m
     behind = (lane_index == 1) & (front < STALLED_X - 4.5 / 2)
     gap = np.where(behind, STALLED_X - 4.5 / 2 - front, 30.0)
@@ -100,6 +113,10 @@ def _trace(steps: int, dt: float, seed: int, collision: bool) -> Trace:  # noqa:
     decision.n_obstacles[:] = ahead.astype(int)
     decision.lat_ref_m[:] = np.where(ahead, LANE_W, 0.0)
 
+
+def _fill_controller(tr: Trace, rng: np.random.Generator, t: np.ndarray) -> None:
+    """The controller's columns, timing and diagnostics (a short fallback at 60-62)."""
+    steps = tr.step.shape[0]
     ctrl = tr.controller
     ctrl.residual[:] = 1e-6 * (1 + rng.random(steps))
     ctrl.fallback[60:63] = True
@@ -117,8 +134,7 @@ def _trace(steps: int, dt: float, seed: int, collision: bool) -> Trace:  # noqa:
     extra["torque_corr_nm"][:] = 10.0
     extra["preview_err_t_m"][:] = 0.3 * np.cos(0.5 * t)
     extra["preview_err_n_m"][:] = 0.05 * N_PREVIEW  # the preview's drift below (0.05 m/knot)
-    extra["lateral_ref_m"][:] = decision.lat_ref_m
-    return tr
+    extra["lateral_ref_m"][:] = tr.decision.lat_ref_m
 
 
 def _neighbours(t: np.ndarray, x: np.ndarray, y: np.ndarray, n_traffic: int,

@@ -47,18 +47,23 @@ def toml_string(text: str) -> str:
     return '"' + "".join(escape(ch) for ch in text) + '"'
 
 
-def toml_value(value: Any) -> str:  # noqa: PLR0911 (issue 37: still to split)
+def toml_float(value: float) -> str:
+    """A float as TOML writes it (nan, inf and -inf spelled out)."""
+    if math.isnan(value):
+        return "nan"
+    if math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    return repr(value)
+
+
+def toml_value(value: Any) -> str:
     """``value`` as an inline TOML value (one line)."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):
         return str(value)
     if isinstance(value, float):
-        if math.isnan(value):
-            return "nan"
-        if math.isinf(value):
-            return "inf" if value > 0 else "-inf"
-        return repr(value)
+        return toml_float(value)
     if isinstance(value, str):
         return toml_string(value)
     if isinstance(value, list | tuple):
@@ -183,14 +188,8 @@ def delete_at(doc: Any, path: str) -> None:
         node.pop(comps[-1], None)
 
 
-@st.composite
-def catalogs(draw: st.DrawFn, nets: list[str]) -> tuple[str, int]:  # noqa: C901, PLR0912
-    """(TOML text, number of [[scenario]] tables it was built with)."""
-    scenarios = [base_scenario("fz")]
-    extras = draw(st.sets(st.sampled_from(["stalled", "traffic", "criteria", "sweep", "seed",
-                                           "second", "actors"]), max_size=3))
-    sc = scenarios[0]
-    sc["duration_s"] = draw(DURATIONS)
+def _add_extras(draw: st.DrawFn, sc: dict[str, Any], extras: set[str]) -> None:
+    """The optional tables ``extras`` names, drawn into scenario ``sc``."""
     if "stalled" in extras:
         sc["stalled"] = [{"lane": 1, "pos_m": draw(st.sampled_from([300.0, 61.0, -5.0, 1e9]))}]
     if "traffic" in extras:
@@ -205,27 +204,45 @@ def catalogs(draw: st.DrawFn, nets: list[str]) -> tuple[str, int]:  # noqa: C901
     if "sweep" in extras:
         sc["sweep"] = {draw(PATHS): draw(st.lists(VALUES, max_size=3))
                        for _ in range(draw(st.integers(1, 2)))}
+
+
+def _mutate(draw: st.DrawFn, doc: dict[str, Any], scenarios: list[dict[str, Any]],
+            nets: list[str]) -> None:
+    """One drawn mutation of ``doc``: a value set or deleted in a scenario, its net
+    replaced, a default or a top-level key written."""
+    target = draw(st.sampled_from(scenarios))
+    kind = draw(st.sampled_from(["set", "set", "set", "delete", "net", "net", "defaults",
+                                 "top"]))
+    if kind == "set":
+        set_at(target, draw(PATHS), draw(VALUES))
+    elif kind == "delete":
+        delete_at(target, draw(PATHS))
+    elif kind == "net":
+        target["net"] = draw(st.sampled_from(nets))
+    elif kind == "defaults":
+        if not isinstance(doc.get("defaults"), dict):
+            doc["defaults"] = {}
+        doc["defaults"][draw(PATHS).split(".")[0]] = draw(VALUES)
+    else:
+        doc[draw(st.sampled_from(["scenario", "defaults", "extra"]))] = draw(VALUES)
+
+
+@st.composite
+def catalogs(draw: st.DrawFn, nets: list[str]) -> tuple[str, int]:
+    """(TOML text, number of [[scenario]] tables it was built with)."""
+    scenarios = [base_scenario("fz")]
+    extras = draw(st.sets(st.sampled_from(["stalled", "traffic", "criteria", "sweep", "seed",
+                                           "second", "actors"]), max_size=3))
+    sc = scenarios[0]
+    sc["duration_s"] = draw(DURATIONS)
+    _add_extras(draw, sc, extras)
     if "second" in extras:
         second = copy.deepcopy(sc)
         second["name"] = draw(st.sampled_from(["fz", "fz2", "fz__x", "FZ"]))
         scenarios.append(second)
     doc: dict[str, Any] = {"scenario": scenarios}
     for _ in range((draw(st.integers(0, 15)) + 3) // 4):  # 0 mutations in 1/16 of them
-        target = draw(st.sampled_from(scenarios))
-        kind = draw(st.sampled_from(["set", "set", "set", "delete", "net", "net", "defaults",
-                                     "top"]))
-        if kind == "set":
-            set_at(target, draw(PATHS), draw(VALUES))
-        elif kind == "delete":
-            delete_at(target, draw(PATHS))
-        elif kind == "net":
-            target["net"] = draw(st.sampled_from(nets))
-        elif kind == "defaults":
-            if not isinstance(doc.get("defaults"), dict):
-                doc["defaults"] = {}
-            doc["defaults"][draw(PATHS).split(".")[0]] = draw(VALUES)
-        else:
-            doc[draw(st.sampled_from(["scenario", "defaults", "extra"]))] = draw(VALUES)
+        _mutate(draw, doc, scenarios, nets)
     text = toml_document(doc)
     if draw(st.integers(0, 19)) == 0:  # broken TOML now and then
         cut = draw(st.integers(0, len(text)))
