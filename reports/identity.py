@@ -42,7 +42,7 @@ from reports.record import RunInfo, Verdict
 
 __all__ = ["CHANGE_KINDS", "CODE_KEY", "CONTENT_KEY", "CONTROLLER_KEY", "LIMITS_KEY",
            "NOT_TEST_FIELDS", "SUT_KEY", "TEST_KEY", "LimitChange", "OptionChange", "Setup",
-           "SetupChange", "SetupDigests", "SutChange", "digest", "digests_of_run_json",
+           "SetupChange", "SetupDigests", "SutChange", "digest",
            "flatten_options", "limits_sha256", "setup_change", "setup_from", "setup_of",
            "sut_sha256", "test_sha256"]
 
@@ -190,25 +190,6 @@ class SetupDigests:
     test_spec: str
     limits: str
     sut: str
-
-
-def digests_of_run_json(info: Mapping[str, Any], criteria: Mapping[str, Any]) -> SetupDigests:
-    """:class:`SetupDigests` straight from a parsed ``run.json``'s ``info`` table and its
-    verdict's ``criteria``, without building the typed record (the history reads
-    thousands of runs a night: the recorded digests are taken as they are; only an
-    older run's are worked out, by the same functions as :func:`setup_of`)."""
-    spec = info.get("scenario_spec") or {}
-    test = str(spec.get(TEST_KEY) or "")
-    test_spec = ""
-    if not test:
-        fields = _test_fields(spec)
-        test_spec = digest(fields if fields else {k: info.get(k) for k in _INFO_TEST_FIELDS})
-    sut = str(spec.get(SUT_KEY) or "")
-    if not sut:
-        params = info.get("controller_params") or info.get("controller_options") or {}
-        sut = sut_sha256(str(info.get("controller", "")), params,
-                         str(spec.get(CONTROLLER_KEY) or spec.get(CODE_KEY) or ""))
-    return SetupDigests(test, test_spec, limits_sha256(criteria) if criteria else "", sut)
 
 
 @dataclass(frozen=True)

@@ -106,7 +106,8 @@ def test_two_thousand_scenarios_by_a_hundred_nights(tmp_path: Path) -> None:
 def night_directory(out: Path, k: int) -> Path:
     """Night ``k`` as an output directory: a manifest, results.csv and per run a
     run.json of a real one's size (~25 kB: the verdict's metric entries, the criteria,
-    the content hash) — what :func:`reports.history.read_night` reads."""
+    the content hash). :func:`reports.history.read_night` reads the run.json files as
+    typed records (the results.csv is there as a run writes one; it is not read)."""
     import dataclasses
 
     import pandas as pd

@@ -330,8 +330,8 @@ def test_a_night_record_refuses_misaligned_or_unknown_input() -> None:
 
 
 def test_results_csv_and_the_run_directories_give_the_same_night(tmp_path: Path) -> None:
-    """The fast path reads the results.csv the run wrote; without it (or when it is
-    older than a run.json) the rows are rebuilt from the run directories: the same."""
+    """A night is read from its run directories' typed records, never from results.csv:
+    with or without the results.csv the run wrote, the same night."""
     from reports import write_reports
 
     out = output_dir(tmp_path / "night1", "2026-11-01T03:00:00+00:00")

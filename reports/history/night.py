@@ -1,14 +1,15 @@
-"""A night read from its output directory (:func:`read_night`): the manifest's facts, each
-run's facts and its results row, as the :class:`NightRecord` the history database stores
-(:mod:`reports.history.store` adds it)."""
+"""A night read from its output directory (:func:`read_night`): the manifest's facts and,
+per run, its typed record (``RunInfo``, ``RunOutcome``, ``Verdict``: the run's row,
+failures and facts), as the :class:`NightRecord` the history database stores
+(:mod:`reports.history.store` adds it). Nothing is parsed back from text: results.csv is
+not read, and the failure modes are the typed failures' metric names."""
 
 from __future__ import annotations
 
 import datetime as _dt
 import hashlib
 import json
-import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,17 +26,16 @@ from reports.identity import (
     CODE_KEY,
     CONTENT_KEY,
     CONTROLLER_KEY,
+    SUT_KEY,
     SetupDigests,
-    digests_of_run_json,
+    setup_from,
 )
 from reports.manifest import MANIFEST, read_manifest
 from reports.metrics.catalogue import CRITERIA_METRICS
-from reports.record import RUN_JSON, Failure, iter_run_dirs
-from reports.record.codec import RecordError, decode_dataclass
+from reports.record import Failure, RunInfo, Verdict
 from reports.record.meta import STATUSES
-from reports.tables import collect_runs, results_frame
-
-RESULTS_CSV = "results.csv"
+from reports.record.run import read_run_json
+from reports.tables import RunEntry, collect_runs, results_frame
 
 
 @dataclass(frozen=True)
@@ -85,11 +85,12 @@ class NightInfo:
 
 @dataclass(frozen=True)
 class RunFacts:
-    """What the history keeps of a run beyond results.csv, read from its run.json:
-    ``scenario_hash`` (the content hash, '' unknown), ``limits`` (metric -> limit in
-    force), the set-up digests (:class:`reports.identity.SetupDigests`),
-    ``controller_code`` (its code hash) and ``controller_params`` (its resolved options,
-    canonical JSON), the typed ``failures`` and the known-failure mark."""
+    """What the history keeps of a run beyond its results row, from its typed run.json
+    (:func:`run_facts`): ``scenario_hash`` (the content hash, '' unknown), ``limits``
+    (metric -> limit in force, in the metric's unit), the set-up digests
+    (:class:`reports.identity.SetupDigests`), ``controller_code`` (its code hash) and
+    ``controller_params`` (its resolved options, canonical JSON), the typed
+    ``failures`` (``Verdict.failures``) and the known-failure mark."""
 
     scenario_hash: str = ""
     limits: tuple[tuple[str, float], ...] = ()
@@ -104,10 +105,11 @@ class RunFacts:
 class NightRecord:
     """A night as the database stores it: ``info`` and one entry per run, aligned.
 
-    metric_names: the metric columns (results.csv's order); values_2d[i, j]: run i's
-    value of metric j (NaN absent; ±inf as stored); limits_2d[i, j]: the limit in force
-    on metric j for run i (NaN: none). failure_modes[i]: the metric names of run i's
-    failed criteria."""
+    metric_names: the metric columns (results.csv's, in its order); values_2d[i, j]: run
+    i's value of metric j (NaN absent; ±inf as stored); limits_2d[i, j]: the limit in
+    force on metric j for run i (NaN: none). failed_criteria[i]: run i's
+    ``Verdict.failed_text`` (results.csv's column; '' without a verdict);
+    failure_modes[i]: the metric names of its failures (``Verdict.failures``)."""
 
     info: NightInfo
     scenarios: tuple[str, ...]
@@ -182,48 +184,49 @@ NOT_METRICS = ("scenario", "controller", "variant", "status", "failed_criteria",
                "run", "robustness_criterion")
 
 
-def _failures(raw: Any, path: Path) -> tuple[Failure, ...]:
-    if not isinstance(raw, list):
-        return ()
-    try:
-        return tuple(decode_dataclass(Failure, f, path, "verdict.failures") for f in raw)
-    except RecordError:
-        return ()
+def setup_digests(info: RunInfo, criteria: Mapping[str, Any]) -> SetupDigests:
+    """The set-up digests the history stores for a run (:class:`SetupDigests`) from its
+    typed ``info`` and the limits in force (``Verdict.criteria``): the recorded test
+    and system-under-test digests as they are; an older run's worked out as
+    :func:`reports.identity.setup_from` does (the test's from its recorded fields, the
+    fallback ``test_spec`` only when no test digest is recorded)."""
+    setup = setup_from(info, criteria)
+    recorded_sut = str((info.scenario_spec or {}).get(SUT_KEY) or "")
+    return SetupDigests(test=setup.test, test_spec="" if setup.test else setup.test_spec,
+                        limits=setup.limits_sha256 if criteria else "",
+                        sut=recorded_sut or setup.sut_sha256)
 
 
-def run_facts(run_dir: Path) -> RunFacts:
-    """:class:`RunFacts` of a run directory, read from its run.json directly (these
-    fields only: the typed reader takes ~20 ms a run, this well under 1 ms); an
-    unreadable file gives empty facts (results.csv already reports that run as
-    'error')."""
-    path = run_dir / RUN_JSON
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        info = data["info"]
-        spec = info.get("scenario_spec") or {}
-        verdict = data.get("verdict") or {}
-        criteria = verdict.get("criteria") or {}
-        content = spec.get(CONTENT_KEY, "")
-        params = info.get("controller_params") or info.get("controller_options") or {}
-        code = spec.get(CONTROLLER_KEY) or spec.get(CODE_KEY) or ""
-        digests = digests_of_run_json(info, criteria)
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return RunFacts()
+def run_facts(info: RunInfo, verdict: Verdict | None) -> RunFacts:
+    """:class:`RunFacts` of a run from its typed run.json (``info`` and its verdict;
+    without a verdict: no limits, no failures)."""
+    spec = info.scenario_spec or {}
+    criteria = verdict.criteria if verdict is not None else {}
+    content = spec.get(CONTENT_KEY, "")
+    params = info.controller_params or info.controller_options or {}
     limits = tuple((CRITERIA_METRICS[c][0], float(v)) for c, v in criteria.items()
                    if c in CRITERIA_METRICS and isinstance(v, int | float)
                    and not isinstance(v, bool))
     return RunFacts(scenario_hash=content if isinstance(content, str) else "", limits=limits,
-                    digests=digests, controller_code=str(code),
+                    digests=setup_digests(info, criteria),
+                    controller_code=str(spec.get(CONTROLLER_KEY) or spec.get(CODE_KEY) or ""),
                     controller_params=json.dumps(params, sort_keys=True, allow_nan=True,
                                                  default=str),
-                    failures=_failures(verdict.get("failures"), path),
-                    xfail=xfail_of(spec if isinstance(spec, dict) else None))
+                    failures=verdict.failures if verdict is not None else (),
+                    xfail=xfail_of(spec))
 
 
-def failure_modes_of(failed_criteria: str) -> tuple[str, ...]:
-    """The metric names of results.csv's ``failed_criteria`` (``metric=value>limit;…``)."""
-    return tuple(re.split(r"[=<>]", f, maxsplit=1)[0] for f in failed_criteria.split(";")
-                 if f)
+def entry_facts(entry: RunEntry) -> RunFacts:
+    """:func:`run_facts` of a run as the reports read it; a run directory they could not
+    read (another file damaged: an 'error' run) has its run.json read alone
+    (:func:`reports.record.run.read_run_json`); empty facts when that fails too."""
+    if entry.record is not None:
+        return run_facts(entry.record.info, entry.record.verdict)
+    try:
+        info, _, verdict = read_run_json(entry.run_dir)
+    except (OSError, ValueError):  # RecordError is a ValueError
+        return RunFacts()
+    return run_facts(info, verdict)
 
 
 def parse_started(text: str, where: str) -> _dt.datetime:
@@ -236,41 +239,6 @@ def parse_started(text: str, where: str) -> _dt.datetime:
     return t if t.tzinfo is not None else t.replace(tzinfo=_dt.UTC)
 
 
-def results_of(out: Path, run_dirs: Sequence[Path]) -> pd.DataFrame:
-    """The night's results.csv rows, one per run directory. Every run directory is
-    read with the reports' reader (:func:`reports.tables.collect_runs`, through
-    :func:`reports.record.load_run`: a directory that cannot be read, a file changed
-    or corrupt since the run wrote it, is an 'error' run). When every one can be read,
-    the file the run wrote is used if it covers exactly these run directories and is
-    newer than every run.json; otherwise the rows are rebuilt from the entries
-    (:func:`reports.tables.results_frame`, as ``hwyeval report``)."""
-    entries = collect_runs(out)
-    frame = _written_results(out, run_dirs)
-    if frame is not None and not any(e.unreadable for e in entries):
-        return frame
-    return results_frame(entries)
-
-
-def _written_results(out: Path, run_dirs: Sequence[Path]) -> pd.DataFrame | None:
-    """results.csv as the run wrote it, when it covers exactly ``run_dirs`` and is newer
-    than every run.json (None otherwise)."""
-    path = out / RESULTS_CSV
-    if not path.is_file():
-        return None
-    try:
-        # only an empty cell is missing: a scenario named "NA" stays a name
-        frame = pd.read_csv(path, keep_default_na=False, na_values=[""])
-    except (OSError, ValueError, pd.errors.ParserError):
-        return None
-    if "run" not in frame.columns:
-        return None
-    newest = max((d / RUN_JSON).stat().st_mtime for d in run_dirs)
-    if (sorted(frame["run"].astype(str)) == sorted(d.name for d in run_dirs)
-            and path.stat().st_mtime >= newest):
-        return frame
-    return None
-
-
 def _metric_matrix(frame: pd.DataFrame) -> tuple[tuple[str, ...], np.ndarray]:
     names = tuple(c for c in frame.columns if c not in NOT_METRICS)
     if not names:
@@ -281,11 +249,18 @@ def _metric_matrix(frame: pd.DataFrame) -> tuple[tuple[str, ...], np.ndarray]:
 
 def read_night(out_dir: str | Path, night_id: str | None = None,
                catalog_name: str | None = None) -> NightRecord:
-    """The night in ``out_dir``: its manifest, its results.csv rows (see
-    :func:`results_of`) and each run's :class:`RunFacts`. ``night_id`` defaults to
-    ``<catalog name>@<started>``; ``catalog_name`` (``--catalog-name``) replaces the
-    catalog's identity (the manifest's). Raises :class:`HistoryError` when ``out_dir``
-    is not a directory, has no readable manifest, has not finished, or holds no run."""
+    """The night in ``out_dir``: its manifest and, per run directory (sorted by name),
+    its typed record as the reports read it (:func:`reports.tables.collect_runs`,
+    through :func:`reports.record.load_run`: a directory that cannot be read, a file
+    changed or corrupt since the run wrote it, is an 'error' run). The metric columns
+    and values are results.csv's (:func:`reports.tables.results_frame`, built from the
+    verdicts, never read back from the file), ``failed_criteria`` is
+    ``Verdict.failed_text``, the failure modes the failures' metric names, and each
+    run's :class:`RunFacts` come from its ``RunInfo`` and ``Verdict``. ``night_id``
+    defaults to ``<catalog name>@<started>``; ``catalog_name`` (``--catalog-name``)
+    replaces the catalog's identity (the manifest's). Raises :class:`HistoryError` when
+    ``out_dir`` is not a directory, has no readable manifest, has not finished, or
+    holds no run."""
     out = Path(out_dir).resolve()
     if not out.is_dir():
         raise HistoryError(f"{out_dir}: no such output directory")
@@ -296,23 +271,19 @@ def read_night(out_dir: str | Path, night_id: str | None = None,
     if not manifest.finished:
         raise HistoryError(f"{out / MANIFEST}: key 'finished' is empty: the run has not "
                            "finished (or was interrupted); add it once it has")
-    run_dirs = iter_run_dirs(out)
-    if not run_dirs:
+    entries = collect_runs(out)
+    if not entries:
         raise HistoryError(f"{out_dir}: holds no run directory (DIR/<scenario>/run.json)")
-    frame = results_of(out, run_dirs)
-    by_name = {d.name: d for d in run_dirs}
-    dirs = [by_name[str(r)] for r in frame["run"]]
-    facts = tuple(run_facts(d) for d in dirs)
-    names, values = _metric_matrix(frame)
+    facts = tuple(entry_facts(e) for e in entries)
+    names, values = _metric_matrix(results_frame(entries))
     index = {m: j for j, m in enumerate(names)}
     limits = np.full(values.shape, np.nan)
     for i, k in enumerate(facts):
         for metric, limit in k.limits:
             if metric in index:
                 limits[i, index[metric]] = limit
-    failed = tuple("" if pd.isna(f) else str(f) for f in frame["failed_criteria"])
-    scenarios = tuple(str(s) for s in frame["scenario"])
-    controllers = tuple(str(c) for c in frame["controller"])
+    scenarios = tuple(e.scenario for e in entries)
+    controllers = tuple(e.controller for e in entries)
     hashes = tuple(k.scenario_hash for k in facts)
     prov = manifest.provenance
     identity = manifest.identity()
@@ -326,9 +297,11 @@ def read_night(out_dir: str | Path, night_id: str | None = None,
     try:
         return NightRecord(
             info=info, scenarios=scenarios, scenario_hashes=hashes, controllers=controllers,
-            statuses=tuple(str(s) for s in frame["status"]), failed_criteria=failed,
-            failure_modes=tuple(failure_modes_of(f) for f in failed),
-            run_dirs=tuple(str(d) for d in dirs), metric_names=names, values_2d=values,
-            limits_2d=limits, facts=facts)
+            statuses=tuple(e.status for e in entries),
+            failed_criteria=tuple(e.verdict.failed_text if e.verdict is not None else ""
+                                  for e in entries),
+            failure_modes=tuple(tuple(f.metric for f in e.failures) for e in entries),
+            run_dirs=tuple(str(e.run_dir) for e in entries), metric_names=names,
+            values_2d=values, limits_2d=limits, facts=facts)
     except ValueError as exc:
-        raise HistoryError(f"{out / RESULTS_CSV}: {exc}") from exc
+        raise HistoryError(f"{out}: {exc}") from exc

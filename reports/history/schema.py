@@ -102,7 +102,9 @@ MIGRATIONS: dict[int, tuple[str, ...]] = {
                     "controller_code", "controller_params", "xfail")),
         "ALTER TABLE runs ADD COLUMN xfail_strict BOOLEAN NOT NULL DEFAULT false",
         f"ALTER TABLE runs ADD COLUMN failures {FAILURE_STRUCT}[]",
-        # results.csv's text is metric=value>limit (or <) per failed criterion
+        # rows stored before v3 keep only failed_criteria's text (metric=value>limit, or
+        # <, per failed criterion): only the migrations parse it; a night being added
+        # brings its typed failures (reports.history.night)
         "UPDATE runs SET failures = CASE WHEN failed_criteria = '' THEN [] ELSE "
         "list_transform(string_split(failed_criteria, ';'), lambda f: struct_pack("
         "criterion := '', metric := regexp_extract(f, '^[^=]+'), "

@@ -4,8 +4,9 @@ A *night* is one catalog output directory (``hwyeval run --out DIR``): its
 ``manifest.json`` (who ran what, where, when) and its run directories, read with the
 reports' own reader (:func:`reports.tables.collect_runs`, the checks of
 :func:`reports.record.load_run` included: a run directory that cannot be read is an
-'error' run; the rows are those of results.csv). :func:`read_night` turns it into a
-:class:`NightRecord`, :func:`add_night` writes that into the database in one transaction.
+'error' run). :func:`read_night` turns their typed records into a :class:`NightRecord`
+(the rows results.csv has, built from the verdicts, not read back from the file);
+:func:`add_night` writes that into the database in one transaction.
 
 Writers are serialised by a lock file next to the database (``DB.lock``, an exclusive
 ``flock``); readers take it shared. A writer waits up to ``wait_s`` for it and then
@@ -42,15 +43,13 @@ from reports.history.database import (
 )
 from reports.history.night import (
     NOT_METRICS,
-    RESULTS_CSV,
     NightInfo,
     NightRecord,
     RunFacts,
     catalog_digest,
-    failure_modes_of,
+    entry_facts,
     parse_started,
     read_night,
-    results_of,
     run_facts,
 )
 from reports.history.schema import (
@@ -63,10 +62,10 @@ from reports.manifest import MANIFEST, read_manifest
 
 __all__ = ["AddResult", "BASELINES", "Baseline", "CatalogClash", "DEFAULT_WAIT_S",
            "HistoryLocked", "NOT_METRICS", "NightConflict", "NightInfo", "NightRecord",
-           "NoBaseline", "QueryResult", "RESULTS_CSV", "RunFacts", "add_night", "baseline_night",
-           "catalog_digest", "catalog_matches", "connect", "failure_modes_of", "lock_path",
+           "NoBaseline", "QueryResult", "RunFacts", "add_night", "baseline_night",
+           "catalog_digest", "catalog_matches", "connect", "entry_facts", "lock_path",
            "locked", "night_infos", "night_passed", "parse_started", "read_night", "reading",
-           "results_of", "run_facts", "run_sql"]
+           "run_facts", "run_sql"]
 
 
 class NightConflict(HistoryError):

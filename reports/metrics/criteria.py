@@ -18,6 +18,12 @@ Where a failure happened (``Failure.step``, a trace row, and ``Failure.t_s``):
   extreme was attained: their ``worst_step``;
 * aggregates (rms_lat_dev_m, progress_ratio) have no step (None).
 
+At that step the failure also records the manoeuvre phase (``Failure.phase``: the
+trace's decision ``side`` named by :data:`reports.record.verdict.PHASES`) and whether a
+safe fallback had replaced the controller's plan (``Failure.fell_back``: the trace's
+``fallback`` column), so that what was going on when it failed (the search's failure
+mode) is read from the verdict, never from the trace again.
+
 Overrides: the catalog's ``criteria`` table (``info.criteria``) maps field names of
 :class:`Criteria` to numbers; the string ``"off"`` (:data:`OFF`; TOML has no null) or
 ``None`` disables a criterion; unknown names raise. :func:`override_problem` is the
@@ -36,9 +42,11 @@ import numpy as np
 from reports.metrics.catalogue import CRITERIA, CRITERIA_METRICS
 from reports.metrics.values import Measured
 from reports.record import Failure
+from reports.record.verdict import phase_name
 
-__all__ = ["CRITERIA_METRICS", "OFF", "STEPS_CRITERION", "Criteria", "override_limit",
-           "override_problem", "steps_failure", "violation_step"]
+__all__ = ["CRITERIA_METRICS", "OFF", "STEPS_CRITERION", "Criteria", "fell_back_at",
+           "override_limit", "override_problem", "phase_at", "steps_failure",
+           "violation_step"]
 
 # Not a Criteria field: a run without trace rows has nothing to judge and fails this.
 STEPS_CRITERION = "min_steps"
@@ -139,10 +147,13 @@ class Criteria:
         """Criterion name -> limit (stored as ``Verdict.criteria``)."""
         return dict(self.limits)
 
-    def check(self, metrics: Sequence[Measured], t_s: np.ndarray | None = None
+    def check(self, metrics: Sequence[Measured], t_s: np.ndarray | None = None, *,
+              side: np.ndarray | None = None, fallback: np.ndarray | None = None
               ) -> tuple[Failure, ...]:
         """The failed criteria, in :data:`CRITERIA_METRICS` order, each located (see the
-        module doc); ``t_s`` (T,) gives their times."""
+        module doc); the trace's columns (T,) give their times (``t_s`` [s]), phases
+        (``side``: decision side codes) and fallbacks (``fallback``: bool); one not
+        given leaves that field unknown."""
         by_name = {m.name: m for m in metrics}
         failed: list[Failure] = []
         for criterion, limit in self.limits:
@@ -155,7 +166,9 @@ class Criteria:
                 step = violation_step(found, limit, bound)
                 failed.append(Failure(criterion=criterion, metric=name, value=value,
                                       limit=float(limit), bound=bound, unit=found.metric.unit,
-                                      step=step, t_s=_time_at(t_s, step)))
+                                      step=step, t_s=_time_at(t_s, step),
+                                      phase=phase_at(side, step),
+                                      fell_back=fell_back_at(fallback, step)))
         return tuple(failed)
 
 
@@ -177,6 +190,26 @@ def _time_at(t_s: np.ndarray | None, step: int | None) -> float | None:
         return None
     value = float(t_s[step])
     return value if math.isfinite(value) else None
+
+
+def _row(column: np.ndarray | None, step: int | None) -> Any:
+    """``column[step]`` (None without the column, the step, or past its end)."""
+    if column is None or step is None or not 0 <= step < column.shape[0]:
+        return None
+    return column[step]
+
+
+def phase_at(side: np.ndarray | None, step: int | None) -> str:
+    """The manoeuvre phase at trace row ``step``: ``phase_name`` of the decision
+    ``side`` code there (:mod:`reports.record.verdict`); '' when unknown."""
+    code = _row(side, step)
+    return phase_name(int(code)) if code is not None else ""
+
+
+def fell_back_at(fallback: np.ndarray | None, step: int | None) -> bool | None:
+    """Whether a safe fallback replaced the plan at trace row ``step`` (None: unknown)."""
+    flag = _row(fallback, step)
+    return bool(flag) if flag is not None else None
 
 
 def steps_failure() -> Failure:

@@ -104,14 +104,18 @@ def evaluate(record: RunRecord, criteria_overrides: Mapping[str, Any] | None = N
     Criteria: :func:`criteria_for`. Status: ``record.outcome.end`` when the run did not
     end 'ok' ('error' or 'timeout', judged on what was recorded), else 'fail' when any
     criterion failed and 'pass' otherwise. A run without trace rows fails ``steps``
-    first. The collision metrics rest on the 2-D boxes; where SUMO's collision report
-    disagrees with them is listed in ``Verdict.collision_disagreements``
-    (:mod:`reports.metrics.collisions`). Raises ValueError for invalid criteria.
+    first. Each failure records its step's manoeuvre phase and whether the controller
+    had fallen back there (:meth:`Criteria.check`). The collision metrics rest on the
+    2-D boxes; where SUMO's collision report disagrees with them is listed in
+    ``Verdict.collision_disagreements`` (:mod:`reports.metrics.collisions`). Raises
+    ValueError for invalid criteria.
     """
     limits = criteria_for(record, criteria_overrides)
     found, series, collisions = measure_all(record)
-    failures = limits.check(found, np.asarray(record.trace.t_s, dtype=np.float64))
-    if len(record.trace) == 0:
+    trace = record.trace
+    failures = limits.check(found, np.asarray(trace.t_s, dtype=np.float64),
+                            side=trace.decision.side, fallback=trace.controller.fallback)
+    if len(trace) == 0:
         failures = (steps_failure(), *failures)
     if record.outcome.end != END_OK:
         status = record.outcome.end

@@ -98,12 +98,32 @@ class MetricValue:
             raise ValueError(f"MetricValue.better must be one of {BETTER}, got {self.better!r}")
 
 
+# The manoeuvre phase a trace row's decision ``side`` code names (the trace's
+# ``DecisionColumns.side``, controllers.behaviour.types.Side): passing on the left or
+# right, keeping its lane, following a car it cannot pass. Another code is ``side<code>``.
+PHASES: dict[int, str] = {1: "left", -1: "right", 0: "lane", 2: "follow"}
+
+
+def phase_name(side: int) -> str:
+    """The phase of decision ``side`` code ``side`` (:data:`PHASES`; ``side<code>``
+    for a code it does not list)."""
+    return PHASES.get(side, f"side{side}")
+
+
 @dataclass(frozen=True)
 class Failure:
     """A criterion the run did not meet: ``value`` of ``metric`` beyond ``limit``.
 
     bound: 'max' (fails when value > limit) or 'min' (fails when value < limit);
-    step / t_s: the trace row and time where it was first (or worst) violated.
+    step / t_s: the trace row and time [s] where it was first (or worst) violated
+    (None: an aggregate over the whole run).
+    phase: the manoeuvre phase at ``step`` (:func:`phase_name` of the trace's decision
+        ``side`` at that row: 'left', 'right', 'lane', 'follow'), recorded by the
+        metrics when the run is judged; '' without a step or in a run.json written
+        before it was recorded.
+    fell_back: whether a safe fallback had replaced the controller's plan at ``step``
+        (the trace's ``fallback`` column; False for a driver without one); None without
+        a step or in a run.json written before it was recorded.
     """
 
     criterion: str
@@ -114,10 +134,15 @@ class Failure:
     unit: str = ""
     step: int | None = None
     t_s: float | None = None
+    phase: str = ""
+    fell_back: bool | None = None
 
     def __post_init__(self) -> None:
         if self.bound not in BOUNDS:
             raise ValueError(f"Failure.bound must be one of {BOUNDS}, got {self.bound!r}")
+        if self.step is None and (self.phase or self.fell_back is not None):
+            raise ValueError("Failure: a failure without a step has no phase and no "
+                             f"fell_back, got {self.phase!r}, {self.fell_back!r}")
 
     @property
     def text(self) -> str:

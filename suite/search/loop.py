@@ -28,9 +28,11 @@ interrupted (``run_batch`` returns None) leaves its trials RUNNING; resuming run
 exactly those again (their points are in the storage) before asking anew.
 
 A trial's *failure mode* (:func:`failure_mode`): its failed criteria (sorted, joined by
-'+') and the manoeuvre phase at the earliest failure's step, from the trace's decision
-``side`` (left / right: passing on that side, lane: keeping its lane, follow: following
-a car it cannot pass; ``whole_run`` for a failure without a step).
+'+') and the manoeuvre phase at the earliest failure's step, as the metrics recorded it
+in the verdict (``Failure.phase``, from the trace's decision ``side``: left / right:
+passing on that side, lane: keeping its lane, follow: following a car it cannot pass;
+``whole_run`` for failures without a step; ``unknown`` for a run.json written before
+the phase was recorded). The trace is not read again.
 """
 
 from __future__ import annotations
@@ -46,15 +48,16 @@ from typing import Any
 import optuna
 
 from reports.metrics.robustness import robustness
-from reports.record import RunRecord, load_run
+from reports.record import RunRecord
+from reports.record.verdict import PHASES
 from suite.catalog import Scenario
 from suite.exec.signals import StopRequest
 from suite.search.journal import ASKS_MARKED, BatchedJournal, asked_key, open_journal
 from suite.search.samplers import SAMPLERS, make_sampler
 from suite.search.space import Family, Param, Refused, build_point, trial_name
 
-__all__ = ["SAMPLERS", "BatchRunner", "FamilyResult", "SearchSettings", "TrialResult",
-           "failure_mode", "make_sampler", "open_storage", "search_family"]
+__all__ = ["PHASES", "SAMPLERS", "BatchRunner", "FamilyResult", "SearchSettings",
+           "TrialResult", "failure_mode", "make_sampler", "open_storage", "search_family"]
 
 REFUSED = "refused"
 INTERRUPTED = "interrupted"
@@ -62,7 +65,6 @@ VALUE_CAP = 1e9  # +inf robustness (no criterion in force) is told as this
 # The optimiser is told the soft minimum of the margins at this temperature (None: the
 # robustness itself); see :func:`objective`.
 SOFTMIN_TAU: float | None = 1.0
-PHASES = {1: "left", -1: "right", 0: "lane", 2: "follow"}
 
 # The batch of scenarios -> their records in the same order; None: stopped.
 BatchRunner = Callable[[Sequence[Scenario]], "list[RunRecord] | None"]
@@ -172,16 +174,11 @@ def failure_mode(record: RunRecord) -> str:
     if verdict is None or not verdict.failures:
         return ""
     criteria = "+".join(sorted({f.criterion for f in verdict.failures}))
-    steps = [f.step for f in verdict.failures if f.step is not None]
-    if not steps or record.run_dir is None:
+    steps = [(f.step, i) for i, f in enumerate(verdict.failures) if f.step is not None]
+    if not steps:
         return f"{criteria}@whole_run"
-    try:
-        trace = load_run(record.run_dir, trace=True, neighbours=False, arrays=False,
-                         series=False).trace
-        side = int(trace.decision.side[min(steps)])
-    except Exception:  # noqa: BLE001 - an unreadable trace still has its criteria
-        return f"{criteria}@unknown"
-    return f"{criteria}@{PHASES.get(side, f'side{side}')}"
+    earliest = verdict.failures[min(steps)[1]]  # failures at one step share its phase
+    return f"{criteria}@{earliest.phase or 'unknown'}"
 
 
 def objective(margins: Sequence[float], tau: float | None = SOFTMIN_TAU) -> float:
