@@ -185,7 +185,7 @@ def _failing_since(nights: Sequence[NightInfo], statuses: Sequence[str | None],
     return first, None
 
 
-def scenario_trend(scenario: str, nights: Sequence[NightInfo],  # noqa: PLR0913
+def scenario_trend(scenario: str, nights: Sequence[NightInfo],  # noqa: PLR0913 - one observation series per keyword, aligned with nights
                    statuses: Sequence[str | None], hashes: Sequence[str] | None = None,
                    values: Sequence[float] | None = None, limit: float = math.nan, *,
                    marks: Sequence[Xfail | None] | None = None,
