@@ -6,11 +6,13 @@ where another ``ray.init()`` would find it), token authentication on, and a fixe
 A worker node may be started in a mount namespace of its own (``unshare -m``) with a
 tmpfs over folders of the driver's: it cannot see them, as a machine of a real cluster
 cannot. Nodes are stopped by the process ids of their session (never ``ray stop``,
-which would stop every cluster of this machine).
+which would stop every cluster of this machine). The head checks its nodes every second
+(:data:`HEALTH_CHECK`): a killed node is known dead within seconds.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import secrets
 import shutil
@@ -27,6 +29,9 @@ ROOT = Path(__file__).resolve().parents[1]
 RAY = Path(sys.executable).with_name("ray")
 OBJECT_STORE_BYTES = 150 * 1024 * 1024  # each node's object store [bytes]
 START_S = 90.0  # a node must be up within this [s]
+# the head's check of its nodes: a dead node is dead for Ray after ~5 s (Ray's default:
+# 5 failed checks 3 s apart), so that a test sees it said within its run
+HEALTH_CHECK = {"RAY_health_check_period_ms": "1000", "RAY_health_check_failure_threshold": "5"}
 
 
 def free_port() -> int:
@@ -90,11 +95,13 @@ class RayNode:
         self.log = root / f"{name}.log"
         temp = root / name
         self.temp = temp
+        self.node_manager_port = free_port()
+        self.node_id = ""  # Ray's id of the node, once the cluster has it (wait_cpus)
         ports = ["--dashboard-agent-listen-port", str(free_port()),
                  "--dashboard-agent-grpc-port", str(free_port()),
                  "--metrics-export-port", str(free_port()),
                  "--runtime-env-agent-port", str(free_port()),
-                 "--node-manager-port", str(free_port()),
+                 "--node-manager-port", str(self.node_manager_port),
                  "--object-manager-port", str(free_port())]
         cmd = [str(RAY), "start", "--block", "--node-ip-address", "127.0.0.1", "--temp-dir",
                str(temp), "--object-store-memory", str(OBJECT_STORE_BYTES),
@@ -158,9 +165,10 @@ class LocalCluster:
         self.node_env = {**base, "RAY_TMPDIR": str(self.root / "rt"), "HOME": str(self.root /
                                                                                "home"),
                          "RAY_USAGE_STATS_ENABLED": "0", "RAY_AUTH_MODE": "token",
-                         "RAY_AUTH_TOKEN": self.token}
+                         "RAY_AUTH_TOKEN": self.token, **HEALTH_CHECK}
         # the driver: the token only (RAY_AUTH_MODE unset: hwyeval turns token mode on)
-        self.driver_env = {k: v for k, v in self.node_env.items() if k != "RAY_AUTH_MODE"}
+        self.driver_env = {k: v for k, v in self.node_env.items()
+                           if k != "RAY_AUTH_MODE" and k not in HEALTH_CHECK}
         try:
             head = RayNode(self.root, "head", self.node_env,
                            ["--head", "--port", str(self.port), "--include-dashboard", "false",
@@ -181,13 +189,17 @@ class LocalCluster:
 
     def wait_cpus(self, timeout_s: float = START_S) -> float:
         """Wait until the cluster's alive nodes have as many CPUs as the alive nodes
-        started here asked for; returns them."""
-        script = ("import sys, time, ray; ray.init(address=sys.argv[1], "
+        started here asked for; returns them. Each node's ``node_id`` is set (its node
+        manager's port names it)."""
+        script = ("import json, sys, time, ray; ray.init(address=sys.argv[1], "
                   "log_to_driver=False); want = float(sys.argv[2]); t = time.time()\n"
                   "while time.time() - t < float(sys.argv[3]):\n"
-                  "    got = sum(n['Resources'].get('CPU', 0) for n in ray.nodes() "
-                  "if n['Alive'])\n"
-                  "    if got >= want: print(got); break\n"
+                  "    alive = [n for n in ray.nodes() if n['Alive']]\n"
+                  "    got = sum(n['Resources'].get('CPU', 0) for n in alive)\n"
+                  "    if got >= want:\n"
+                  "        print(json.dumps({n['NodeManagerPort']: n['NodeID'] "
+                  "for n in alive}))\n"
+                  "        print(got); break\n"
                   "    time.sleep(0.5)\n")
         want = sum(float(n.proc.args[n.proc.args.index("--num-cpus") + 1])
                    for n in self.nodes if n.proc.poll() is None and "--num-cpus" in n.proc.args)
@@ -195,9 +207,20 @@ class LocalCluster:
         done = subprocess.run([sys.executable, "-c", script, self.address, str(want),
                                str(timeout_s)], env=env, capture_output=True, text=True,
                               timeout=timeout_s + 60)
-        if not done.stdout.strip():
+        lines = done.stdout.strip().splitlines()
+        if len(lines) < 2:
             raise RuntimeError(f"the cluster never had {want} CPUs:\n{done.stderr[-2000:]}")
-        return float(done.stdout.split()[-1])
+        ids = {int(port): node_id for port, node_id in json.loads(lines[-2]).items()}
+        for node in self.nodes:
+            node.node_id = ids.get(node.node_manager_port, node.node_id)
+        return float(lines[-1])
+
+    def node(self, name: str) -> RayNode | None:
+        """The node started as ``name``, if its session is still running."""
+        for node in self.nodes:
+            if node.name == name and node.proc.poll() is None:
+                return node
+        return None
 
     def stop(self) -> None:
         for node in reversed(self.nodes):

@@ -14,7 +14,10 @@ from suite.exec.ray.archive import pack_run, unpack_run
 from suite.exec.ray.executor import (
     MAX_ATTEMPTS,
     MAX_NET_BYTES,
+    NODE_WAIT_ENV,
+    NODE_WAIT_S,
     RETURN_GRACE_S,
+    TRACE_ENV,
     RayExecutor,
     ray_payload,
     read_net,
@@ -28,6 +31,6 @@ from suite.exec.ray.target import (
     ray_target,
 )
 
-__all__ = ["CHECK_S", "CONNECT_S", "MAX_ATTEMPTS", "MAX_NET_BYTES", "RETURN_GRACE_S",
-           "RayAddressError", "RayExecutor", "RayTarget", "check_target", "pack_run",
-           "ray_payload", "ray_target", "read_net", "unpack_run"]
+__all__ = ["CHECK_S", "CONNECT_S", "MAX_ATTEMPTS", "MAX_NET_BYTES", "NODE_WAIT_ENV", "NODE_WAIT_S",
+           "RETURN_GRACE_S", "TRACE_ENV", "RayAddressError", "RayExecutor", "RayTarget",
+           "check_target", "pack_run", "ray_payload", "ray_target", "read_net", "unpack_run"]

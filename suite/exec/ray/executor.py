@@ -16,8 +16,12 @@ As each scenario ends its run directory comes back as an archive and is publishe
 once (atomically), so a driver lost mid-catalog keeps what finished for ``--resume``. A
 worker lost mid-run (its node died, its process was killed) does not lose the
 scenario: it runs again on another actor, up to :data:`MAX_ATTEMPTS` times in all, and
-is then recorded as an ``error`` saying so; with no actor left the scenarios not run are
-recorded as errors, and the command ends. An actor that does not return within a run's
+is then recorded as an ``error`` saying so. The pool follows the cluster (its nodes
+looked at every :data:`~suite.exec.ray.nodes.NODE_POLL_S`): a node that joins gets
+actors, one that leaves has its actors dropped. With no actor left and no node to start
+one on for :data:`NODE_WAIT_S` (``HWYEVAL_RAY_NODE_WAIT_S``), the scenarios not run are
+recorded as errors, and the command ends. ``HWYEVAL_RAY_TRACE=1`` says on stderr the node
+each scenario starts and finishes on. An actor that does not return within a run's
 budget plus :data:`RETURN_GRACE_S` (beyond the child's own backstop) is killed and the
 run recorded as a ``timeout``. On a stop request every actor is killed (their scenario
 children die with them), nothing more is recorded, and Ray is shut down if this executor
@@ -41,7 +45,8 @@ from suite.exec.jobs import OnDone, RunJob, read_result, write_failure
 from suite.exec.local import KILL_GRACE_S
 from suite.exec.ray.actor import ScenarioActor
 from suite.exec.ray.archive import unpack_run
-from suite.exec.ray.pool import ActorPool, PooledActor, alive_nodes, plan_pool
+from suite.exec.ray.nodes import NODE_POLL_S, alive_nodes, plan_pool
+from suite.exec.ray.pool import ActorPool, PooledActor
 from suite.exec.ray.say import say
 from suite.exec.ray.target import CHECK_S, CONNECT_S, check_target, init_within, ray_target
 from suite.exec.shipping import (
@@ -53,12 +58,15 @@ from suite.exec.shipping import (
 )
 from suite.exec.signals import POLL_S, StopRequest
 
-__all__ = ["MAX_ATTEMPTS", "MAX_NET_BYTES", "RETURN_GRACE_S", "RayExecutor", "Shipment",
-           "ray_payload", "read_net"]
+__all__ = ["MAX_ATTEMPTS", "MAX_NET_BYTES", "NODE_WAIT_ENV", "NODE_WAIT_S", "RETURN_GRACE_S",
+           "TRACE_ENV", "RayExecutor", "Shipment", "ray_payload", "read_net"]
 
 MAX_NET_BYTES = MAX_FILE_BYTES  # a file larger than this is not shipped to Ray [bytes]
 MAX_ATTEMPTS = 3  # a scenario whose worker is lost runs at most this many times in all
 RETURN_GRACE_S = 30.0  # an actor still busy this long after a run's kill deadline [s]
+NODE_WAIT_S = 60.0  # no actor and no node to start one on this long: the rest are errors [s]
+NODE_WAIT_ENV = "HWYEVAL_RAY_NODE_WAIT_S"  # overrides NODE_WAIT_S [s]
+TRACE_ENV = "HWYEVAL_RAY_TRACE"  # 1: say the node each scenario starts and finishes on
 
 
 def read_net(path: Path, limit: int = MAX_NET_BYTES) -> bytes:
@@ -85,6 +93,31 @@ def ray_payload(job: RunJob, limit: int = MAX_NET_BYTES
     files = job_files(job, lambda p: read_shipped(p, limit))
     return (plugin_without_source(job), {f.sha256: data for f, data in files
                                          if data is not None}, tuple(f for f, _ in files))
+
+
+def node_wait_s(environ: Mapping[str, str]) -> float:
+    """How long a run with no actor waits for a node with a free CPU [s]:
+    ``HWYEVAL_RAY_NODE_WAIT_S``, else :data:`NODE_WAIT_S`; ValueError if not a number
+    >= 0."""
+    text = environ.get(NODE_WAIT_ENV, "").strip()
+    if not text:
+        return NODE_WAIT_S
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0 <= value < float("inf"):
+        raise ValueError(f"{NODE_WAIT_ENV}={text!r}: expected a number of seconds >= 0")
+    return value
+
+
+@dataclass
+class _Watch:
+    """When the driver looks at the cluster's nodes next, and since when (both
+    ``time.monotonic()``) the pool has had no actor with scenarios left to run."""
+
+    next_look: float
+    empty_since: float | None = None
 
 
 class RayExecutor:
@@ -122,7 +155,10 @@ class RayExecutor:
         self.cpus = float(num_cpus_per_task)
         self.jobs = jobs
         self.max_attempts = max_attempts
-        self.target = ray_target(address, os.environ if environ is None else environ)
+        env = os.environ if environ is None else environ
+        self.target = ray_target(address, env)
+        self.node_wait_s = node_wait_s(env)
+        self.trace = env.get(TRACE_ENV, "").strip() not in ("", "0")
         self.started_ray = not ray.is_initialized()
         if self.started_ray:
             if self.target.address is None:
@@ -186,49 +222,103 @@ class RayExecutor:
         """The node of each actor a run of ``n_jobs`` scenarios starts, on the cluster as
         it is now (:func:`plan_pool`: at most ``jobs``, at most one per
         ``num_cpus_per_task`` CPUs of each alive node)."""
-        want = min(n_jobs, self.jobs) if self.jobs else n_jobs
-        return plan_pool(alive_nodes(self.ray.nodes()), want, self.cpus)
+        return plan_pool(alive_nodes(self.ray.nodes()), self._want(n_jobs), self.cpus)
+
+    def _want(self, n_jobs: int) -> int:
+        return min(n_jobs, self.jobs) if self.jobs else n_jobs
 
     def planned_actors(self, n_jobs: int) -> int:
         """How many actors (scenarios at once) a run of ``n_jobs`` scenarios starts on
-        the cluster as it is now."""
+        the cluster as it is now (the pool then follows the cluster's nodes)."""
         return len(self._plan(n_jobs))
 
     def _pool(self, n: int) -> ActorPool:
-        plan = self._plan(n)
         from suite import __version__
         from suite.run.code_identity import hwyeval_code_sha256
 
-        actor_class = self.ray.remote(ScenarioActor)
-        return ActorPool(self.ray, actor_class, plan, self.cpus, version=__version__,
-                         code=hwyeval_code_sha256())
+        pool = ActorPool(self.ray, self.ray.remote(ScenarioActor), self.cpus,
+                         version=__version__, code=hwyeval_code_sha256())
+        nodes = alive_nodes(self.ray.nodes())
+        pool.book.look(nodes)
+        pool.add(plan_pool(nodes, self._want(n), self.cpus))
+        return pool
+
+    def _say_trace(self, line: str) -> None:
+        if self.trace:
+            say(line)
 
     def _loop(self, pool: ActorPool, pending: deque[Shipment],
               busy: dict[Any, tuple[PooledActor, Shipment]], done: OnDone,
               stop: StopRequest) -> None:
+        watch = _Watch(next_look=time.monotonic() + NODE_POLL_S)
         while (pending or busy) and not stop.requested:
             pool.expire()
-            while pending and pool.idle:
-                actor, item = pool.idle.pop(0), pending.popleft()
-                item.attempts += 1
-                item.started = time.monotonic()
-                refs = {f.sha256: self.refs[f.sha256] for f in item.files}
-                busy[actor.handle.run.remote(item.sent, item.files, refs)] = (actor, item)
-            if pending and not busy and not pool.starting and not pool.idle:
-                why = "; ".join(pool.lost[-3:]) or "the cluster has no free CPU for one"
-                while pending:
-                    item = pending.popleft()
-                    done(write_failure(item.job, "error", f"no Ray worker left to run it "
-                                                          f"({why})"))
+            if time.monotonic() >= watch.next_look:
+                watch.next_look = time.monotonic() + NODE_POLL_S
+                self._follow(pool, pending, busy)
+            self._dispatch(pool, pending, busy)
+            if self._out_of_workers(pool, pending, busy, watch, done):
                 return
             waiting = list(busy) + list(pool.starting)
+            if not waiting:
+                time.sleep(POLL_S)
+                continue
             ready, _ = self.ray.wait(waiting, num_returns=1, timeout=POLL_S)
             for ref in ready:
                 if ref in pool.starting:
                     pool.started(ref)
-                else:
+                elif ref in busy:
                     self._returned(ref, busy.pop(ref), pool, pending, done)
             self._expire_busy(pool, busy, done)
+
+    def _dispatch(self, pool: ActorPool, pending: deque[Shipment],
+                  busy: dict[Any, tuple[PooledActor, Shipment]]) -> None:
+        """Send a pending scenario to each idle actor."""
+        while pending and pool.idle:
+            actor, item = pool.idle.pop(0), pending.popleft()
+            item.attempts += 1
+            item.started = time.monotonic()
+            refs = {f.sha256: self.refs[f.sha256] for f in item.files}
+            busy[actor.handle.run.remote(item.sent, item.files, refs)] = (actor, item)
+            self._say_trace(f"{item.job.name}: started on {pool.book.where(actor.node_id)} "
+                            f"(attempt {item.attempts} of {self.max_attempts})")
+
+    def _follow(self, pool: ActorPool, pending: deque[Shipment],
+                busy: dict[Any, tuple[PooledActor, Shipment]]) -> None:
+        """Look at the cluster's nodes; the pool follows them, within ``jobs`` actors and
+        one actor per scenario left (:meth:`ActorPool.follow`)."""
+        try:
+            nodes = alive_nodes(self.ray.nodes())
+        except (self.ray.exceptions.RayError, OSError, RuntimeError):
+            return  # the head briefly unreachable: the next look
+        room = len(pending) - len(pool.idle) - len(pool.starting)
+        if self.jobs:
+            room = min(room, self.jobs - pool.alive)
+        pool.follow(nodes, room)
+
+    def _out_of_workers(self, pool: ActorPool, pending: deque[Shipment],
+                        busy: dict[Any, tuple[PooledActor, Shipment]], watch: _Watch,
+                        done: OnDone) -> bool:
+        """With scenarios to run and no actor (starting, idle or busy): wait for a node
+        to start one on, ``node_wait_s`` at most; then record them as errors (True)."""
+        if not pending or busy or pool.all:
+            watch.empty_since = None
+            return False
+        now = time.monotonic()
+        if watch.empty_since is None:
+            watch.empty_since = watch.next_look = now
+            say(f"no Ray worker to run the {len(pending)} scenario(s) left: waiting up to "
+                f"{self.node_wait_s:g} s for a node with a free CPU")
+            return False
+        if now - watch.empty_since < self.node_wait_s:
+            return False
+        why = "; ".join(pool.lost[-3:]) or "the cluster has no node with a free CPU"
+        while pending:
+            item = pending.popleft()
+            done(write_failure(item.job, "error", f"no Ray worker left to run it: no node "
+                                                  f"with a free CPU for {self.node_wait_s:g} "
+                                                  f"s ({why})"))
+        return True
 
     def _returned(self, ref: Any, entry: tuple[PooledActor, Shipment], pool: ActorPool,
                   pending: deque[Shipment], done: OnDone) -> None:
@@ -243,28 +333,31 @@ class RayExecutor:
 
         actor, item = entry
         job = item.job
+        where = pool.book.where(actor.node_id)
         try:
             archive = self.ray.get(ref)
         except (RayActorError, WorkerCrashedError, NodeDiedError, ObjectLostError) as exc:
             why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
-            pool.drop(actor, why)
+            pool.drop(actor, why, lost=True)
             again = item.attempts < self.max_attempts
-            say(f"{job.name}: its Ray worker was lost ({why}); "
-                 + (f"runs again (attempt {item.attempts + 1} of {self.max_attempts})"
-                    if again else "recorded as an error"))
+            say(f"{job.name}: its Ray worker on {where} was lost ({why}); "
+                + (f"runs again (attempt {item.attempts + 1} of {self.max_attempts})"
+                   if again else "recorded as an error"))
             if again:
                 pending.appendleft(item)
             else:
                 done(write_failure(job, "error", f"its Ray worker was lost {item.attempts} "
-                                                 f"times (last: {why})"))
+                                                 f"times (last: {where}: {why})"))
             return
         except Exception:  # noqa: BLE001 - the call failed on the worker: this run's error
             pool.idle.append(actor)
-            done(write_failure(job, "error", traceback.format_exc()))
-            return
-        pool.idle.append(actor)
-        done(self._publish(archive, job))
-        self.latency_s[job.name] = time.monotonic() - item.started
+            record = write_failure(job, "error", traceback.format_exc())
+        else:
+            pool.idle.append(actor)
+            record = self._publish(archive, job)
+            self.latency_s[job.name] = time.monotonic() - item.started
+        self._say_trace(f"{job.name}: finished on {where} ({record.status})")
+        done(record)
 
     @staticmethod
     def _publish(archive: bytes, job: RunJob) -> RunRecord:
@@ -284,6 +377,8 @@ class RayExecutor:
                 continue
             del busy[ref]
             pool.drop(actor, "did not return from a run in time")
+            self._say_trace(f"{item.job.name}: finished on {pool.book.where(actor.node_id)} "
+                            "(timeout)")
             done(write_failure(item.job, "timeout", f"its Ray worker did not return within "
                                                     f"{now - item.started:.1f} s (budget "
                                                     f"{budget:g} s); killed"))

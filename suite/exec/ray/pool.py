@@ -3,66 +3,36 @@ cluster's nodes.
 
 Size: one actor per ``cpus_per_actor`` CPUs of every alive node, at most ``want`` (the
 number of scenarios, or ``--jobs``), spread round-robin over the nodes so that each node
-has one before any has two (:func:`plan_pool`). Each actor is pinned (softly) to its
-node. An actor is usable once its ``ready`` call returned (its preload done); one not
-ready within ``start_s`` [s] is killed. An actor whose call failed with a lost worker or
-node is dropped (its idle siblings on that node are asked ``ready`` again before they
-get work, so that a dead node costs a scenario one attempt, not one per actor there).
-An actor whose node has another hwyeval version installed is dropped too; one whose
-code differs from the driver's (:func:`suite.run.code_identity.hwyeval_code_sha256`: an
-uncommitted edit, another checkout) is kept and said once on stderr.
+has one before any has two (:func:`plan_pool`). During the run the pool follows the
+cluster (:meth:`ActorPool.follow`, :mod:`suite.exec.ray.nodes`): a node that joins gets
+actors (within the cap and the scenarios left), a node that leaves has its actors
+dropped, each said on stderr. Each actor is pinned (softly) to its node. An actor is
+usable once its ``ready`` call returned (its preload done); one not ready within
+``start_s`` [s] is killed. An actor whose call failed with a lost worker or node is
+dropped (its idle siblings on that node are asked ``ready`` again before they get work,
+so that a dead node costs a scenario one attempt, not one per actor there), and its
+node gets no new actor. An actor whose node has another hwyeval version installed is
+dropped too; one whose code differs from the driver's
+(:func:`suite.run.code_identity.hwyeval_code_sha256`: an uncommitted edit, another
+checkout) is kept and said once on stderr.
 """
 
 from __future__ import annotations
 
-import math
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from suite.exec.ray.nodes import NodeBook, NodeCpus, actors, alive_nodes, plan_pool
 from suite.exec.ray.say import say
 
-__all__ = ["ACTOR_START_S", "ActorPool", "NodeCpus", "PooledActor", "plan_pool"]
+__all__ = ["ACTOR_START_S", "ActorPool", "NodeCpus", "PooledActor", "alive_nodes",
+           "plan_pool"]
 
 ACTOR_START_S = 300.0  # an actor must be ready (preload done) within this [s]
 RECHECK_S = 30.0  # a sibling of a lost actor must answer ready within this [s]
-
-
-@dataclass(frozen=True)
-class NodeCpus:
-    """An alive Ray node and its CPUs (Ray's ``CPU`` resource)."""
-
-    node_id: str
-    cpus: float
-
-    def __post_init__(self) -> None:
-        if not self.node_id:
-            raise ValueError("NodeCpus.node_id: expected a node id")
-        if not math.isfinite(self.cpus) or self.cpus < 0:
-            raise ValueError(f"NodeCpus.cpus: expected a finite number >= 0, got {self.cpus!r}")
-
-
-def alive_nodes(nodes: Iterable[Mapping[str, Any]]) -> list[NodeCpus]:
-    """The alive nodes of ``ray.nodes()`` with their CPUs."""
-    return [NodeCpus(str(n["NodeID"]), float(n.get("Resources", {}).get("CPU", 0.0)))
-            for n in nodes if n.get("Alive")]
-
-
-def plan_pool(nodes: Sequence[NodeCpus], want: int, cpus_per_actor: float = 1.0) -> list[str]:
-    """The node id of each actor to start (module doc): at most ``want``, at most
-    ``floor(cpus / cpus_per_actor)`` on a node, round-robin over the nodes."""
-    if want < 0 or cpus_per_actor <= 0:
-        raise ValueError(f"plan_pool: want >= 0 and cpus_per_actor > 0, got {want}, "
-                         f"{cpus_per_actor}")
-    slots = {n.node_id: int(n.cpus // cpus_per_actor + 1e-9) for n in nodes}
-    plan: list[str] = []
-    while len(plan) < want and any(slots.values()):
-        for node in list(slots):
-            if slots[node] > 0 and len(plan) < want:
-                plan.append(node)
-                slots[node] -= 1
-    return plan
 
 
 @dataclass
@@ -78,14 +48,15 @@ class PooledActor:
 
 
 class ActorPool:
-    """Starts the actors of a plan and tracks them: starting, idle, lost (module doc)."""
+    """Starts actors on nodes and tracks them: starting, idle, lost; follows the
+    cluster's nodes (module doc)."""
 
-    def __init__(self, ray: Any, actor_class: Any, plan: Sequence[str],
-                 cpus_per_actor: float = 1.0, start_s: float = ACTOR_START_S,
-                 version: str = "", code: str = "") -> None:
-        from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
-
+    def __init__(self, ray: Any, actor_class: Any, cpus_per_actor: float = 1.0,
+                 start_s: float = ACTOR_START_S, version: str = "", code: str = "") -> None:
         self.ray = ray
+        self.actor_class = actor_class
+        self.cpus = cpus_per_actor
+        self.start_s = start_s
         self.version = version  # the driver's hwyeval version ('': not checked)
         self.code = code  # the driver's hwyeval code hash ('': not compared)
         self.warned: set[str] = set()  # code hashes warned about
@@ -93,20 +64,62 @@ class ActorPool:
         self.idle: list[PooledActor] = []
         self.all: list[PooledActor] = []
         self.lost: list[str] = []  # why each lost actor was dropped
-        deadline = time.monotonic() + start_s
-        for node_id in plan:
-            handle = actor_class.options(
-                num_cpus=cpus_per_actor, max_restarts=0, max_task_retries=0,
-                scheduling_strategy=NodeAffinitySchedulingStrategy(node_id, soft=True),
-            ).remote()
-            actor = PooledActor(handle, node_id, handle.ready.remote(), deadline)
-            self.starting[actor.ready_ref] = actor
-            self.all.append(actor)
+        self.book = NodeBook(cpus_per_actor)
 
     @property
     def alive(self) -> int:
         """Actors that are starting, idle or running a scenario."""
         return len(self.all)
+
+    def add(self, plan: Sequence[str]) -> None:
+        """Start an actor on each node of ``plan`` (node ids)."""
+        from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+        deadline = time.monotonic() + self.start_s
+        for node_id in plan:
+            handle = self.actor_class.options(
+                num_cpus=self.cpus, max_restarts=0, max_task_retries=0,
+                scheduling_strategy=NodeAffinitySchedulingStrategy(node_id, soft=True),
+            ).remote()
+            actor = PooledActor(handle, node_id, handle.ready.remote(), deadline)
+            self.starting[actor.ready_ref] = actor
+            self.all.append(actor)
+            self.book.started[node_id] += 1
+
+    def follow(self, nodes: Sequence[NodeCpus], room: int) -> None:
+        """Take ``nodes`` (the alive ones, :func:`alive_nodes`) as the cluster now: drop
+        the actors of the nodes that left, start at most ``room`` actors on the nodes
+        that joined or have CPUs no actor of this run held; each said on stderr."""
+        joined, left = self.book.look(nodes)
+        for node_id in left:
+            gone = self.forget_node(node_id)
+            if gone or self.book.started[node_id]:
+                say(f"{self.book.where(node_id)} left: -{actors(gone)}")
+        plan = plan_pool(self.book.spare(), max(room, 0), self.cpus)
+        counts = Counter(plan)
+        for node in joined:
+            if node.cpus > 0:
+                say(f"{self.book.where(node.node_id)} joined: +{actors(counts[node.node_id])}")
+        new = {n.node_id for n in joined}
+        for node_id, n in counts.items():
+            if node_id not in new:
+                say(f"{self.book.where(node_id)}: +{actors(n)} on its free CPUs")
+        self.add(plan)
+
+    def forget_node(self, node_id: str) -> int:
+        """Kill and forget every actor on ``node_id`` (it left the cluster: a call still
+        running there fails as a lost worker); returns how many actors the pool lost
+        with it (those lost there before it was seen gone included)."""
+        gone = [a for a in self.all if a.node_id == node_id]
+        for actor in gone:
+            self.kill(actor)
+            self.all.remove(actor)
+            if actor in self.idle:
+                self.idle.remove(actor)
+            self.starting.pop(actor.ready_ref, None)
+        if gone:
+            self.lost.append(f"{self.book.where(node_id)} left the cluster")
+        return len(gone) + self.book.lost.pop(node_id, 0)
 
     def started(self, ref: Any) -> None:
         """A ``ready`` call returned: that actor is idle, or dropped if it failed."""
@@ -115,8 +128,13 @@ class ActorPool:
         try:
             actor.info = dict(self.ray.get(ref))
         except Exception as exc:  # noqa: BLE001 - an actor that could not start
-            self.drop(actor, f"did not start: {type(exc).__name__}: {exc}")
+            self.drop(actor, f"did not start: {type(exc).__name__}: {exc}", lost=True)
             return
+        placed = str(actor.info.get("node_id") or actor.node_id)
+        if placed != actor.node_id:  # a soft affinity placed it elsewhere
+            self.book.started[actor.node_id] -= 1
+            self.book.started[placed] += 1
+            actor.node_id = placed
         version = str(actor.info.get("version", ""))
         if self.version and version != self.version:
             self.drop(actor, f"runs hwyeval {version or '?'}, the driver {self.version}: "
@@ -125,7 +143,7 @@ class ActorPool:
         code = str(actor.info.get("code", ""))
         if self.code and code != self.code and code not in self.warned:
             self.warned.add(code)
-            say(f"the hwyeval on node {actor.node_id[:12]} is not the driver's code "
+            say(f"the hwyeval on {self.book.where(actor.node_id)} is not the driver's code "
                 f"({code[:10]}, the driver's {self.code[:10]}: an edit, another checkout); "
                 "its runs are recorded with the driver's")
         self.idle.append(actor)
@@ -139,15 +157,19 @@ class ActorPool:
                 self.drop(actor, "not ready in time (no free CPU on its node, or a "
                                  "preload that hangs)")
 
-    def drop(self, actor: PooledActor, why: str) -> None:
+    def drop(self, actor: PooledActor, why: str, lost: bool = False) -> None:
         """Kill ``actor`` and forget it; its idle siblings on the same node are asked
-        ``ready`` again before they get more work."""
+        ``ready`` again before they get more work. ``lost``: its worker or node was
+        lost: the node gets no new actor."""
         self.kill(actor)
         if actor in self.all:
             self.all.remove(actor)
+            if lost:
+                self.book.lost[actor.node_id] += 1
+                self.book.barred.add(actor.node_id)
         if actor in self.idle:
             self.idle.remove(actor)
-        self.lost.append(f"actor on node {actor.node_id[:12]}: {why}")
+        self.lost.append(f"actor on {self.book.where(actor.node_id)}: {why}")
         for sibling in [a for a in self.idle if a.node_id == actor.node_id]:
             self.idle.remove(sibling)
             sibling.ready_ref = sibling.handle.ready.remote()
