@@ -177,19 +177,19 @@ def test_an_evasive_change_carries_on_when_aborting_is_worse(path: FrenetPath) -
 
 def test_minimal_risk_braking_known_answers() -> None:
     from controllers.behaviour.types import Obstacles
-    from controllers.two_loop.fallback import needed_decel_mps2
+    from controllers.two_loop.fallback import most_urgent_obstacle
     x0 = np.array([100.0, 0.0, 0.0])
     obs = Obstacles(s_m=np.array([150.0, 130.0]), y_m=np.array([0.0, 3.5]),
                     speed_s_mps=np.array([0.0, 0.0]), speed_y_mps=np.zeros(2),
                     semi_a_m=np.array([10.0, 10.0]), semi_b_m=np.array([2.5, 2.5]))
     # Only the first covers the ego's offset: 20² / (2 (50 - 10)) = 5 m/s².
-    assert needed_decel_mps2(x0, 20.0, obs) == pytest.approx(5.0)
+    assert most_urgent_obstacle(x0, 20.0, obs)[0] == pytest.approx(5.0)
     # Closing on a moving ellipse: (20 - 10)² / (2 * 40).
     moving = Obstacles(s_m=obs.s_m, y_m=obs.y_m, speed_s_mps=np.array([10.0, 0.0]),
                        speed_y_mps=np.zeros(2), semi_a_m=obs.semi_a_m, semi_b_m=obs.semi_b_m)
-    assert needed_decel_mps2(x0, 20.0, moving) == pytest.approx(1.25)
-    assert needed_decel_mps2(np.array([145.0, 0.0, 0.0]), 5.0, obs) == math.inf
-    assert needed_decel_mps2(x0, 20.0, Obstacles.empty()) == 0.0
+    assert most_urgent_obstacle(x0, 20.0, moving)[0] == pytest.approx(1.25)
+    assert most_urgent_obstacle(np.array([145.0, 0.0, 0.0]), 5.0, obs)[0] == math.inf
+    assert most_urgent_obstacle(x0, 20.0, Obstacles.empty())[0] == 0.0
 
 
 def test_inside_an_ellipse_the_braking_need_uses_the_bumper_gap() -> None:
@@ -200,7 +200,7 @@ def test_inside_an_ellipse_the_braking_need_uses_the_bumper_gap() -> None:
     its margin over the box sum, A - a - 1, continuous with the bumper gap inside."""
     from controllers.behaviour.ellipses import box_half_length_m, ellipse_semi_axes
     from controllers.behaviour.types import ObstaclePolicy, Obstacles
-    from controllers.two_loop.fallback import needed_decel_mps2
+    from controllers.two_loop.fallback import most_urgent_obstacle
     policy = ObstaclePolicy(margin_long_m=2.0, margin_lat_m=0.4, offset_m=0.3)
     sa, sb = ellipse_semi_axes(4.6, 1.8, 4.6, 1.8, policy)
     assert box_half_length_m(np.array([sa]), np.array([sb]), policy) == pytest.approx([4.6])
@@ -208,22 +208,22 @@ def test_inside_an_ellipse_the_braking_need_uses_the_bumper_gap() -> None:
     merge = Obstacles(s_m=np.array([100.0 + 4.6 + 4.0]), y_m=np.zeros(1),
                       speed_s_mps=np.array([21.0]), speed_y_mps=np.zeros(1),
                       semi_a_m=np.array([sa]), semi_b_m=np.array([sb]))
-    assert needed_decel_mps2(x0, 22.0, merge) == math.inf
-    assert needed_decel_mps2(x0, 22.0, merge, policy, 1.0) == pytest.approx(1.0 / 6.0)
+    assert most_urgent_obstacle(x0, 22.0, merge)[0] == math.inf
+    assert most_urgent_obstacle(x0, 22.0, merge, policy, 1.0)[0] == pytest.approx(1.0 / 6.0)
     stopped = Obstacles(s_m=np.array([100.0 + 4.6 + 0.5]), y_m=np.zeros(1),
                         speed_s_mps=np.zeros(1), speed_y_mps=np.zeros(1),
                         semi_a_m=np.array([sa]), semi_b_m=np.array([sb]))
-    assert needed_decel_mps2(x0, 5.0, stopped, policy, 1.0) == math.inf
+    assert most_urgent_obstacle(x0, 5.0, stopped, policy, 1.0)[0] == math.inf
     far = Obstacles(s_m=np.array([160.0]), y_m=np.zeros(1), speed_s_mps=np.zeros(1),
                     speed_y_mps=np.zeros(1), semi_a_m=np.array([sa]), semi_b_m=np.array([sb]))
-    assert needed_decel_mps2(x0, 20.0, far, policy, 1.0) == pytest.approx(
+    assert most_urgent_obstacle(x0, 20.0, far, policy, 1.0)[0] == pytest.approx(
         400.0 / (2.0 * (60.0 - sa)))
     for ds_m, d_m in ((sa + 0.5, sa - 4.6 - 1.0), (sa - 1e-9, sa - 4.6 - 1.0),
                       (4.6 + 2.0, 1.0)):
         near = Obstacles(s_m=np.array([100.0 + ds_m]), y_m=np.zeros(1),
                          speed_s_mps=np.zeros(1), speed_y_mps=np.zeros(1),
                          semi_a_m=np.array([sa]), semi_b_m=np.array([sb]))
-        assert needed_decel_mps2(x0, 2.0, near, policy, 1.0) == pytest.approx(
+        assert most_urgent_obstacle(x0, 2.0, near, policy, 1.0)[0] == pytest.approx(
             4.0 / (2.0 * d_m)), ds_m
 
 

@@ -16,7 +16,12 @@ from controllers.behaviour.types import ObstaclePolicy, Obstacles
 from controllers.params import ParamError
 from controllers.path.frenet import FrenetPath
 from controllers.two_loop.controller import make_two_loop
-from controllers.two_loop.fallback import FallbackParams, MinimalRiskManeuver, planner_emergency
+from controllers.two_loop.fallback import (
+    FallbackParams,
+    MinimalRiskManeuver,
+    most_urgent_obstacle,
+    planner_emergency,
+)
 from controllers.two_loop.jerk import JerkLimiter, JerkLimitParams
 from controllers.two_loop.outer.protocol import OuterPlan
 from reports.metrics.comfort import sg
@@ -142,6 +147,9 @@ def test_emergency_needs_both_a_hard_braking_plan_and_an_obstacle() -> None:
     assert em.active and em.decel_mps2 == pytest.approx(need)
     assert em.ds_m == pytest.approx(60.0) and em.dy_m == pytest.approx(0.0)
     assert em.jerk_mps3 == fb.emergency_jerk_mps3
+    # the controller hands over the need it found once for the threat floor: the same
+    urgent = most_urgent_obstacle(x0, 25.0, car, ObstaclePolicy(), fb.standstill_m)
+    assert planner_emergency(fb, x0, 25.0, hard, car, ObstaclePolicy(), urgent=urgent) == em
     assert not planner_emergency(fb, x0, 25.0, cruise, car, ObstaclePolicy()).active
     beside = _stopped_car(60.0, 3.5)
     assert not planner_emergency(fb, x0, 25.0, hard, beside, ObstaclePolicy()).active

@@ -67,7 +67,7 @@ from controllers.two_loop.fallback import (
     NO_EMERGENCY,
     Emergency,
     MinimalRiskManeuver,
-    needed_decel_mps2,
+    most_urgent_obstacle,
     onset_jerk_mps3,
     planner_emergency,
 )
@@ -281,9 +281,14 @@ class TwoLoopController:
             torque = self._mrm_limits(torque, speed)
         steer, _ = self.steer_rate.limit(steer, t_s, dt, speed, float(st[5]), self.mrm.active)
         lw = launch[2]
-        self._emergency = self._emergency_now(x0, speed, plan, observation.obstacles, lw)
+        # the obstacles' braking need, once for the emergency test and the threat floor
+        # (none while the launch law drives or blends out: it brakes for its own obstacles)
+        urgent = None if self.launch.active or lw > 0.0 else most_urgent_obstacle(
+            x0, speed, observation.obstacles, self.params.policy,
+            self.params.fallback.standstill_m)
+        self._emergency = self._emergency_now(x0, speed, plan, observation.obstacles, urgent)
         source = self._source(fallback, lw, safe_stop)
-        need, floor = self._threat(x0, speed, observation.obstacles, lw)
+        need, floor = self._threat(urgent)
         if floor > 0.0 and torque > -self._vp[0] * self._vp[6] * floor:
             torque, source = -self._vp[0] * self._vp[6] * floor, BrakeSource.THREAT_FLOOR
         torque = self._limit_torque(torque, dt, lw, floor)
@@ -402,16 +407,16 @@ class TwoLoopController:
         return steer, torque, lw
 
     def _emergency_now(self, x0: np.ndarray, speed_mps: float, plan: OuterPlan,
-                       obstacles: Obstacles, launch_weight: float) -> Emergency:
+                       obstacles: Obstacles, urgent: tuple[float, int] | None) -> Emergency:
         """This step's emergency braking, for an obstacle only: the manoeuvre's own brace
-        while it drives, else :func:`planner_emergency` on the plan (none while the launch
-        law drives or blends out)."""
-        if self.launch.active or launch_weight > 0.0:
+        while it drives, else :func:`planner_emergency` on the plan with the step's
+        ``urgent`` obstacle (None: the launch law drives or blends out, no emergency)."""
+        if urgent is None:
             return NO_EMERGENCY
         if self.mrm.active:
             return self.mrm.emergency
         return planner_emergency(self.params.fallback, x0, speed_mps, plan, obstacles,
-                                 self.params.policy)
+                                 self.params.policy, urgent=urgent)
 
     def _mrm_limits(self, torque_nm: float, speed_mps: float) -> float:
         """The minimal-risk manoeuvre's own limits at the wheels (module docstring of
@@ -433,17 +438,14 @@ class TwoLoopController:
             return BrakeSource.LAUNCH
         return BrakeSource.FALLBACK if fallback else BrakeSource.PLAN
 
-    def _threat(self, x0: np.ndarray, speed_mps: float, obstacles: Obstacles,
-                launch_weight: float) -> tuple[float, float]:
+    def _threat(self, urgent: tuple[float, int] | None) -> tuple[float, float]:
         """(need b, floor F) [m/s²] of the threat floor (:mod:`controllers.two_loop.
-        threat`); none while the launch law drives or blends out (it brakes for its own
-        obstacles below walking speed)."""
-        if self.launch.active or launch_weight > 0.0:
+        threat`) from the step's ``urgent`` obstacle's need (None: the launch law drives
+        or blends out, no floor)."""
+        if urgent is None:
             self.threat.reset()
             return 0.0, 0.0
-        need = needed_decel_mps2(x0, speed_mps, obstacles, self.params.policy,
-                                 self.params.fallback.standstill_m)
-        return need, self.threat.update(need, self._emergency.active)
+        return urgent[0], self.threat.update(urgent[0], self._emergency.active)
 
     def _limit_torque(self, torque_nm: float, dt: float, launch_weight: float,
                       floor_mps2: float) -> float:

@@ -220,8 +220,8 @@ def plan_decel_mps2(speed_mps: float, plan: OuterPlan,
 
 
 def planner_emergency(p: FallbackParams, x0: np.ndarray, speed_mps: float, plan: OuterPlan,
-                      obstacles: Obstacles | None,
-                      policy: ObstaclePolicy | None = None) -> Emergency:
+                      obstacles: Obstacles | None, policy: ObstaclePolicy | None = None, *,
+                      urgent: tuple[float, int] | None = None) -> Emergency:
     """Whether the planner's braking this step is an emergency: both the plan's own
     deceleration (:func:`plan_decel_mps2`) and ``NEED_MARGIN`` times an obstacle's need b
     (:func:`most_urgent_obstacle`, from the measured Frenet x0 and speed) exceed
@@ -230,23 +230,21 @@ def planner_emergency(p: FallbackParams, x0: np.ndarray, speed_mps: float, plan:
 
     The plan alone is not enough: a set-point below the car's speed (a lower set speed,
     a restart) is no emergency, however far below. Nor is the obstacle alone: a stopped
-    car the ego evades "needs" an emergency stop all the while the plan goes round it."""
+    car the ego evades "needs" an emergency stop all the while the plan goes round it.
+
+    ``urgent``: :func:`most_urgent_obstacle` of these x0, speed, obstacles and policy
+    (with ``p.standstill_m``) when the caller has it already (computed here otherwise)."""
     if obstacles is None or obstacles.count == 0:
         return NO_EMERGENCY
     want = plan_decel_mps2(speed_mps, plan)
     if not want > p.comfort_decel_mps2:
         return NO_EMERGENCY
-    need, j = most_urgent_obstacle(x0, speed_mps, obstacles, policy, p.standstill_m)
+    need, j = urgent if urgent is not None else most_urgent_obstacle(
+        x0, speed_mps, obstacles, policy, p.standstill_m)
     if j < 0 or not NEED_MARGIN * need > p.comfort_decel_mps2:
         return NO_EMERGENCY
     return Emergency(True, need, float(obstacles.s_m[j] - x0[0]), float(obstacles.y_m[j] - x0[1]),
                      onset_jerk_mps3(p, min(want, NEED_MARGIN * need)))
-
-
-def needed_decel_mps2(x0: np.ndarray, speed_mps: float, obstacles: Obstacles | None,
-                      policy: ObstaclePolicy | None = None, standstill_m: float = 1.0) -> float:
-    """The braking [m/s²] :func:`most_urgent_obstacle` finds (0 if nothing is ahead)."""
-    return most_urgent_obstacle(x0, speed_mps, obstacles, policy, standstill_m)[0]
 
 
 def braking_need_mps2(speed_mps: float, lead_speed_mps: np.ndarray, d_m: np.ndarray,
