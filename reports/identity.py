@@ -42,8 +42,8 @@ from reports.record import RunInfo, Verdict
 
 __all__ = ["CHANGE_KINDS", "CODE_KEY", "CONTENT_KEY", "CONTROLLER_KEY", "LIMITS_KEY",
            "NOT_TEST_FIELDS", "SUT_KEY", "TEST_KEY", "LimitChange", "OptionChange", "Setup",
-           "SetupChange", "SetupDigests", "SutChange", "digest",
-           "flatten_options", "limits_sha256", "setup_change", "setup_from", "setup_of",
+           "SetupChange", "SetupDigests", "SutChange", "digest", "flatten_options",
+           "limits_sha256", "setup_change", "setup_digests", "setup_from", "setup_of",
            "sut_sha256", "test_sha256"]
 
 CONTENT_KEY = "content_sha256"  # everything a run depends on (--resume compares it)
@@ -190,6 +190,19 @@ class SetupDigests:
     test_spec: str
     limits: str
     sut: str
+
+
+def setup_digests(info: RunInfo, criteria: Mapping[str, Any]) -> SetupDigests:
+    """The set-up digests the history stores for a run (:class:`SetupDigests`) from its
+    typed ``info`` and the limits in force (``Verdict.criteria``): the recorded test
+    and system-under-test digests as they are; an older run's worked out as
+    :func:`setup_from` does (the test's from its recorded fields, the fallback
+    ``test_spec`` only when no test digest is recorded)."""
+    setup = setup_from(info, criteria)
+    recorded_sut = str((info.scenario_spec or {}).get(SUT_KEY) or "")
+    return SetupDigests(test=setup.test, test_spec="" if setup.test else setup.test_spec,
+                        limits=setup.limits_sha256 if criteria else "",
+                        sut=recorded_sut or setup.sut_sha256)
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import synthetic_runs as sr
 
+from controllers.behaviour.types import Side
 from reports.metrics import Criteria
 from reports.metrics.values import Measured, measured
 from reports.record import TRACE, Failure, RunRecord, Trace, Verdict, load_run
@@ -71,6 +72,8 @@ def test_a_side_code_outside_the_table_and_missing_columns() -> None:
                             fallback=fallback)  # past the trace's end: unknown
     assert (h.phase, h.fell_back) == ("", None)
     assert PHASES == {1: "left", -1: "right", 0: "lane", 2: "follow"}
+    # every side code the behaviour writes into the trace has its phase name
+    assert set(PHASES) == {int(side) for side in Side}
     with pytest.raises(ValueError, match="without a step"):
         Failure(criterion="c", metric="m", value=1.0, limit=0.0, bound="max", phase="lane")
 

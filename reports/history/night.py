@@ -9,10 +9,9 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -26,9 +25,8 @@ from reports.identity import (
     CODE_KEY,
     CONTENT_KEY,
     CONTROLLER_KEY,
-    SUT_KEY,
     SetupDigests,
-    setup_from,
+    setup_digests,
 )
 from reports.manifest import MANIFEST, read_manifest
 from reports.metrics.catalogue import CRITERIA_METRICS
@@ -182,19 +180,6 @@ def catalog_digest(scenarios: Sequence[str], controllers: Sequence[str],
 # results.csv columns that are not metrics (every other column is one, as a DOUBLE)
 NOT_METRICS = ("scenario", "controller", "variant", "status", "failed_criteria", "family",
                "run", "robustness_criterion")
-
-
-def setup_digests(info: RunInfo, criteria: Mapping[str, Any]) -> SetupDigests:
-    """The set-up digests the history stores for a run (:class:`SetupDigests`) from its
-    typed ``info`` and the limits in force (``Verdict.criteria``): the recorded test
-    and system-under-test digests as they are; an older run's worked out as
-    :func:`reports.identity.setup_from` does (the test's from its recorded fields, the
-    fallback ``test_spec`` only when no test digest is recorded)."""
-    setup = setup_from(info, criteria)
-    recorded_sut = str((info.scenario_spec or {}).get(SUT_KEY) or "")
-    return SetupDigests(test=setup.test, test_spec="" if setup.test else setup.test_spec,
-                        limits=setup.limits_sha256 if criteria else "",
-                        sut=recorded_sut or setup.sut_sha256)
 
 
 def run_facts(info: RunInfo, verdict: Verdict | None) -> RunFacts:

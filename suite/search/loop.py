@@ -49,15 +49,14 @@ import optuna
 
 from reports.metrics.robustness import robustness
 from reports.record import RunRecord
-from reports.record.verdict import PHASES
 from suite.catalog import Scenario
 from suite.exec.signals import StopRequest
 from suite.search.journal import ASKS_MARKED, BatchedJournal, asked_key, open_journal
 from suite.search.samplers import SAMPLERS, make_sampler
 from suite.search.space import Family, Param, Refused, build_point, trial_name
 
-__all__ = ["PHASES", "SAMPLERS", "BatchRunner", "FamilyResult", "SearchSettings",
-           "TrialResult", "failure_mode", "make_sampler", "open_storage", "search_family"]
+__all__ = ["SAMPLERS", "BatchRunner", "FamilyResult", "SearchSettings", "TrialResult",
+           "failure_mode", "make_sampler", "open_storage", "search_family"]
 
 REFUSED = "refused"
 INTERRUPTED = "interrupted"
