@@ -18,7 +18,7 @@ import sumo_nets
 from reports.record import RunRecord
 from suite.catalog import load_catalog
 from suite.exec.executors import RayExecutor, RunJob, ray_payload
-from suite.exec.ray.pool import NodeCpus, plan_pool
+from suite.exec.ray.nodes import NodeCpus, plan_pool
 from suite.exec.ray_executor import read_net
 from suite.exec.shipping import localise, restore_paths
 from suite.run.runner import RunOptions

@@ -25,11 +25,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from suite.exec.ray.nodes import NodeBook, NodeCpus, actors, alive_nodes, plan_pool
+from suite.exec.ray.nodes import NodeBook, NodeCpus, actors, plan_pool
 from suite.exec.ray.say import say
 
-__all__ = ["ACTOR_START_S", "ActorPool", "NodeCpus", "PooledActor", "alive_nodes",
-           "plan_pool"]
+__all__ = ["ACTOR_START_S", "ActorPool", "PooledActor"]
 
 ACTOR_START_S = 300.0  # an actor must be ready (preload done) within this [s]
 RECHECK_S = 30.0  # a sibling of a lost actor must answer ready within this [s]
@@ -87,9 +86,10 @@ class ActorPool:
             self.book.started[node_id] += 1
 
     def follow(self, nodes: Sequence[NodeCpus], room: int) -> None:
-        """Take ``nodes`` (the alive ones, :func:`alive_nodes`) as the cluster now: drop
-        the actors of the nodes that left, start at most ``room`` actors on the nodes
-        that joined or have CPUs no actor of this run held; each said on stderr."""
+        """Take ``nodes`` (the alive ones, :func:`~suite.exec.ray.nodes.alive_nodes`) as
+        the cluster now: drop the actors of the nodes that left, start at most ``room``
+        actors on the nodes that joined or have CPUs no actor of this run held; each said
+        on stderr."""
         joined, left = self.book.look(nodes)
         for node_id in left:
             gone = self.forget_node(node_id)
