@@ -14,8 +14,15 @@ from suite.bench import BenchOptions, BenchResult, _solver_targets, summary_line
 from suite.bench.account import account
 from suite.bench.catalogs import MATRIX_CATALOG, TARGET_CATALOG, dense_catalog, with_defaults
 from suite.bench.command import CommandTiming, RunFigures, StepStats, run_command
-from suite.bench.floor import FloorRun, bound, floor_study, glue_per_step_us
+from suite.bench.figures import (
+    DenseRunFigures,
+    FloorFigures,
+    glue_budget_per_step_us,
+    share_of_floor_without_pct,
+)
+from suite.bench.floor import GLUE_STAGES, FloorRun, bound, floor_study, glue_per_step_us
 from suite.bench.multirate import _Frame, extrapolation_errors
+from suite.bench.summary import glue_stage_lines
 from suite.bench.targets import judge
 from suite.catalog import load_catalog
 
@@ -192,6 +199,56 @@ def test_floor_bound_known_answers() -> None:
         bound(floor, {"wall_s": 2.0, "sim_s": 160.0, "runs": [{}] * 4})
 
 
+def test_the_glue_splits_by_stage_known_answers() -> None:
+    """A loop of 2.0 s: kernel 0.5 inside the controller's 0.8, SUMO 0.3 inside the
+    world's 0.45 inside the dynamics' 0.6, behaviour 0.2, monitor 0.05, recorder 0.1:
+    the glue (1.2 s) splits as 0.2, 0.3, 0.15, 0.15, 0.05, 0.1 and the loop's own 0.25."""
+    run = FloorRun("a", "pass", run_s=2.5, loop_s=2.0, kernel_s=0.5, sumo_s=0.3, steps=1000,
+                   behaviour_s=0.2, controller_s=0.8, dynamics_s=0.6, world_s=0.45,
+                   monitor_s=0.05, recorder_s=0.1)
+    parts = run.glue_by_stage_s()
+    assert [name for name, _ in GLUE_STAGES] == ["behaviour", "controller", "world", "plant",
+                                                 "monitor", "recorder", "loop"]
+    assert parts == pytest.approx((0.2, 0.3, 0.15, 0.15, 0.05, 0.1, 0.25))
+    assert sum(parts) == pytest.approx(run.glue_s)
+    assert not FloorRun("z", "pass", 1.0, 0.8, 0.2, 0.1).staged
+    assert all(math.isnan(v) for v in FloorRun("z", "pass", 1.0, 0.8, 0.2, 0.1)
+               .glue_by_stage_s())
+    good = dict(run_s=2.5, loop_s=2.0, kernel_s=0.5, sumo_s=0.3, behaviour_s=0.2,
+                controller_s=0.8, dynamics_s=0.6, world_s=0.45, monitor_s=0.05, recorder_s=0.1)
+    for bad in (dict(controller_s=0.4),  # the kernel beyond the controller's step
+                dict(world_s=0.2),  # SUMO's step beyond the world's
+                dict(world_s=0.7),  # the world's step beyond the dynamics'
+                dict(recorder_s=0.5),  # the stages beyond the loop
+                dict(monitor_s=-0.01)):
+        with pytest.raises(ValueError):
+            FloorRun("c", "pass", **{**good, **bad})  # type: ignore[arg-type]
+
+
+def test_share_of_the_floor_were_a_stage_free() -> None:
+    """Floor x50 (kernel 0.5 + SUMO 0.3 s a 40 s run); runs at x20 take 2.0 s: free of a
+    0.4 s stage they take 1.6 s, x25, half the floor; the 70 % target leaves
+    40 / 35 - (2.0 - 1.0) = 0.143 s of glue a run, 71 us a step of 2000."""
+    d = DenseRunFigures(runs=2, duration_s=40.0, realtime_factor_median=20.0,
+                        realtime_factor_min=20.0, realtime_factor_max=20.0,
+                        life_realtime_factor_median=18.0, step_p99_ms_worst=1.0,
+                        step_p99_worst_run="a", step_max_ms_worst=2.0, step_max_worst_run="a")
+    fl = FloorFigures(runs=2, glue_per_step_us=500.0, glue_per_run_s=1.0, kernel_per_run_s=0.5,
+                      sumo_per_run_s=0.3, loop_per_run_s=1.8, steps_per_run=2000.0,
+                      third_party_import_s=1.0, preload_s=1.0,
+                      glue_stages_per_run_s=(0.4, 0.2, 0.1, 0.1, 0.05, 0.1, 0.05))
+    assert share_of_floor_without_pct(d, fl, 0.4) == pytest.approx(50.0)
+    assert share_of_floor_without_pct(d, fl, 0.0) == pytest.approx(40.0)
+    assert math.isnan(share_of_floor_without_pct(d, fl, 2.0))  # nothing left of the run
+    assert glue_budget_per_step_us(d, fl, 70.0) == pytest.approx((40 / 35 - 1.0) / 2000 * 1e6)
+    assert glue_budget_per_step_us(d, fl, 40.0) == pytest.approx(500.0)  # today's share
+    assert len(glue_stage_lines(d, fl)) == 1 + len(GLUE_STAGES) + 1
+    with pytest.raises(ValueError):
+        FloorFigures(runs=2, glue_per_step_us=500.0, glue_per_run_s=1.0, kernel_per_run_s=0.5,
+                     sumo_per_run_s=0.3, loop_per_run_s=1.8, steps_per_run=2000.0,
+                     third_party_import_s=1.0, preload_s=1.0, glue_stages_per_run_s=(0.1,))
+
+
 @pytest.mark.slow
 @pytest.mark.sumo
 def test_the_floor_study_times_real_runs(tmp_path: Path) -> None:
@@ -210,6 +267,16 @@ def test_the_floor_study_times_real_runs(tmp_path: Path) -> None:
         assert r["loop_s"] < r["run_s"]
         assert r["steps"] == 100
         assert r["glue_per_step_us"] == pytest.approx(r["glue_s"] / 100 * 1e6)
+        # every stage timed, nested as the loop calls them (FloorRun checks the nesting),
+        # and the split adds up to the glue
+        assert FloorRun(**{k: v for k, v in r.items()
+                           if k not in ("glue_s", "glue_per_step_us")}).staged
+        assert min(r[k] for k in ("behaviour_s", "controller_s", "dynamics_s", "world_s",
+                                  "monitor_s", "recorder_s")) > 0.0
+    for r, split in zip(floor["runs"], floor["glue_stages_s"], strict=True):
+        assert list(split) == [name for name, _ in GLUE_STAGES]
+        assert sum(split.values()) == pytest.approx(r["glue_s"])
+        assert min(split.values()) > 0.0
     assert floor["preload_s"] > 0.0
     assert floor["glue_per_step_us"] == pytest.approx(
         sum(r["glue_s"] for r in floor["runs"]) / 200 * 1e6)

@@ -102,10 +102,12 @@ def _timing() -> CommandTiming:
     manifest at 9.6 s."""
     a = RunFigures("a", "pass", wall_s=3.0, stages_s=2.0, sim_s=40.0, peak_rss_mb=1.0,
                    log_s=0.5, step_p99_ms=0.4, step_max_ms=2.0, start_epoch_s=1002.5,
-                   loop_end_epoch_s=1005.5, end_epoch_s=1006.5, outer_p99_ms=0.1)
+                   loop_end_epoch_s=1005.5, end_epoch_s=1006.5, outer_p99_ms=0.1,
+                   controller_p99_ms=0.15)
     b = RunFigures("b", "pass", wall_s=2.0, stages_s=1.0, sim_s=40.0, peak_rss_mb=1.0,
                    log_s=0.2, step_p99_ms=0.6, step_max_ms=1.5, start_epoch_s=1006.7,
-                   loop_end_epoch_s=1008.7, end_epoch_s=1009.0, outer_p99_ms=0.3)
+                   loop_end_epoch_s=1008.7, end_epoch_s=1009.0, outer_p99_ms=0.3,
+                   controller_p99_ms=0.5)
     return CommandTiming(jobs=1, log=True, wall_s=10.0, runs_span_s=6.5, sim_s=80.0,
                          exit_code=0, runs=(b, a), start_epoch_s=1000.0,
                          manifest_epoch_s=1009.6,
@@ -145,6 +147,9 @@ def test_dense_figures_known_answers() -> None:
     # the step p99 over the run's own outer-update p99: a 0.4 / 0.1, b 0.6 / 0.3
     assert d.step_p99_over_outer_p99_worst == pytest.approx(4.0)
     assert d.step_p99_over_outer_p99_worst_run == "a"
+    # the controller's step alone: a 0.15 / 0.1, b 0.5 / 0.3
+    assert d.controller_p99_over_outer_p99_worst == pytest.approx(0.5 / 0.3)
+    assert d.controller_p99_over_outer_p99_worst_run == "b"
     values = {m.name: m.value for m in measured_targets(d, None, None)}
     assert values == {"step_p99_over_outer_p99": pytest.approx(4.0),
                       "step_max_ms_worst_run": 2.0}

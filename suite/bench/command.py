@@ -77,8 +77,8 @@ class RunFigures:
     recorded stages (behaviour, controller, dynamics summed over its steps), simulated
     time [s], peak RSS of its process [MB], Rerun log time [s], its behaviour +
     controller step p99 and max and its C/GMRES outer update's p99 [ms] (results.csv),
-    and on the wall clock [epoch s] its start, its loop's end and its end (run.json
-    written); NaN where unknown."""
+    the controller's step alone p99 [ms] (its trace), and on the wall clock [epoch s] its
+    start, its loop's end and its end (run.json written); NaN where unknown."""
 
     scenario: str
     status: str
@@ -93,6 +93,7 @@ class RunFigures:
     loop_end_epoch_s: float = math.nan
     end_epoch_s: float = math.nan
     outer_p99_ms: float = math.nan
+    controller_p99_ms: float = math.nan
 
     def __post_init__(self) -> None:
         if self.wall_s < 0 or self.sim_s < 0:
@@ -120,6 +121,15 @@ class RunFigures:
         without both)."""
         ok = self.outer_p99_ms > 0 and math.isfinite(self.step_p99_ms)
         return self.step_p99_ms / self.outer_p99_ms if ok else float("nan")
+
+    @property
+    def controller_p99_over_outer_p99(self) -> float:
+        """The controller's step alone (the trace's ``controller_s - obstacles_s``, no
+        behaviour): its p99 over the outer update's p99 of this run (NaN without both).
+        Beside :attr:`step_p99_over_outer_p99` it tells the behaviour's share of the tail
+        from the controller's."""
+        ok = self.outer_p99_ms > 0 and math.isfinite(self.controller_p99_ms)
+        return self.controller_p99_ms / self.outer_p99_ms if ok else float("nan")
 
 
 @dataclass(frozen=True)
@@ -290,7 +300,10 @@ def _read_runs(out: Path) -> tuple[list[RunFigures], dict[str, StepStats]]:
         beh = np.asarray(cols["obstacles_s"], dtype=np.float64)
         both = np.asarray(cols["controller_s"], dtype=np.float64)
         dyn = np.asarray(cols["sumo_s"], dtype=np.float64)
-        pools["controller_step"].append(both - beh)
+        alone = both - beh
+        finite = alone[np.isfinite(alone)]
+        controller_p99_ms = float(np.percentile(finite, 99)) * 1e3 if finite.size else math.nan
+        pools["controller_step"].append(alone)
         pools["behaviour_and_controller"].append(both)
         pools["behaviour"].append(beh)
         pools["dynamics"].append(dyn)
@@ -304,6 +317,7 @@ def _read_runs(out: Path) -> tuple[list[RunFigures], dict[str, StepStats]]:
             peak_rss_mb=float(outcome["peak_rss_mb"]),
             log_s=float(log_s) if isinstance(log_s, int | float) else float("nan"),
             step_p99_ms=row.step_p99_ms, step_max_ms=row.step_max_ms, start_epoch_s=start,
-            loop_end_epoch_s=loop_end, end_epoch_s=end, outer_p99_ms=row.outer_p99_ms))
+            loop_end_epoch_s=loop_end, end_epoch_s=end, outer_p99_ms=row.outer_p99_ms,
+            controller_p99_ms=controller_p99_ms))
     steps = {k: StepStats.of(np.concatenate(v)) for k, v in pools.items() if v}
     return runs, steps

@@ -25,11 +25,12 @@ from typing import Any
 
 from suite.bench.account import WallAccount, account
 from suite.bench.command import CommandTiming, RunFigures
-from suite.bench.floor import FloorRun, glue_per_step_us
+from suite.bench.floor import GLUE_STAGES, FloorRun, glue_per_step_us
 from suite.bench.targets import Measured
 
 __all__ = ["CommandFigures", "DenseRunFigures", "FloorFigures", "floor_realtime_factor",
-           "measured_targets", "share_of_floor_pct"]
+           "glue_budget_per_step_us", "measured_targets", "share_of_floor_pct",
+           "share_of_floor_without_pct"]
 
 
 def _median(values: list[float]) -> float:
@@ -62,6 +63,8 @@ class DenseRunFigures:
     step_max_worst_run: str
     step_p99_over_outer_p99_worst: float = math.nan
     step_p99_over_outer_p99_worst_run: str = ""
+    controller_p99_over_outer_p99_worst: float = math.nan
+    controller_p99_over_outer_p99_worst_run: str = ""
 
     def __post_init__(self) -> None:
         if self.runs < 1:
@@ -78,13 +81,16 @@ class DenseRunFigures:
         p99, p99_run = _worst(timing.runs, "step_p99_ms")
         mx, mx_run = _worst(timing.runs, "step_max_ms")
         ratio, ratio_run = _worst(timing.runs, "step_p99_over_outer_p99")
+        alone, alone_run = _worst(timing.runs, "controller_p99_over_outer_p99")
         return cls(runs=len(timing.runs), duration_s=max(r.sim_s for r in timing.runs),
                    realtime_factor_median=_median(rtf), realtime_factor_min=min(rtf),
                    realtime_factor_max=max(rtf), life_realtime_factor_median=_median(life),
                    step_p99_ms_worst=p99, step_p99_worst_run=p99_run,
                    step_max_ms_worst=mx, step_max_worst_run=mx_run,
                    step_p99_over_outer_p99_worst=ratio,
-                   step_p99_over_outer_p99_worst_run=ratio_run)
+                   step_p99_over_outer_p99_worst_run=ratio_run,
+                   controller_p99_over_outer_p99_worst=alone,
+                   controller_p99_over_outer_p99_worst_run=alone_run)
 
 
 @dataclass(frozen=True)
@@ -103,10 +109,16 @@ class FloorFigures:
     steps_per_run: float
     third_party_import_s: float
     preload_s: float
+    # the glue per run split as suite.bench.floor.GLUE_STAGES [s] (() when not timed)
+    glue_stages_per_run_s: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         if self.runs < 1:
             raise ValueError(f"runs must be >= 1, got {self.runs}")
+        if self.glue_stages_per_run_s and len(self.glue_stages_per_run_s) != len(GLUE_STAGES):
+            raise ValueError(f"glue_stages_per_run_s: expected {len(GLUE_STAGES)} parts "
+                             f"({', '.join(n for n, _ in GLUE_STAGES)}), got "
+                             f"{len(self.glue_stages_per_run_s)}")
 
     @classmethod
     def of(cls, floor: dict[str, Any]) -> FloorFigures:
@@ -117,6 +129,10 @@ class FloorFigures:
         if not runs:
             raise ValueError("the floor study ran no scenario")
         n = len(runs)
+        staged = all(r.staged for r in runs)
+        split = (tuple(sum(parts) / n for parts in zip(*(r.glue_by_stage_s() for r in runs),
+                                                        strict=True))
+                 if staged else ())
         return cls(runs=n, glue_per_step_us=glue_per_step_us(runs),
                    glue_per_run_s=sum(r.glue_s for r in runs) / n,
                    kernel_per_run_s=sum(r.kernel_s for r in runs) / n,
@@ -124,7 +140,8 @@ class FloorFigures:
                    loop_per_run_s=sum(r.loop_s for r in runs) / n,
                    steps_per_run=sum(r.steps for r in runs) / n,
                    third_party_import_s=float(floor["third_party_import_s"]),
-                   preload_s=float(floor.get("preload_s", math.nan)))
+                   preload_s=float(floor.get("preload_s", math.nan)),
+                   glue_stages_per_run_s=split)
 
 
 @dataclass(frozen=True)
@@ -182,6 +199,32 @@ def share_of_floor_pct(realtime_factor: float, floor_factor: float) -> float:
     if not (math.isfinite(realtime_factor) and floor_factor > 0):
         return math.nan
     return 100.0 * realtime_factor / floor_factor
+
+
+def share_of_floor_without_pct(dense: DenseRunFigures, floor: FloorFigures,
+                                saved_per_run_s: float) -> float:
+    """The one-run share of the floor [%] were ``saved_per_run_s`` [s] of each run free:
+    the dense runs' median wall time (their duration over the median real-time factor)
+    less the saving, as a share of the floor (NaN when nothing would be left)."""
+    floor_x = floor_realtime_factor(dense.duration_s, floor)
+    if not (dense.realtime_factor_median > 0 and math.isfinite(saved_per_run_s)):
+        return math.nan
+    wall_s = dense.duration_s / dense.realtime_factor_median - saved_per_run_s
+    return share_of_floor_pct(dense.duration_s / wall_s, floor_x) if wall_s > 0 else math.nan
+
+
+def glue_budget_per_step_us(dense: DenseRunFigures, floor: FloorFigures,
+                            share_pct: float) -> float:
+    """The glue a control step may cost [us] for one run to reach ``share_pct`` [%] of
+    the floor, the rest of the run (its build, the kernel, SUMO's step: the dense runs'
+    median wall time less the floor study's glue) as measured (NaN without the figures;
+    negative when the rest alone misses it)."""
+    floor_x = floor_realtime_factor(dense.duration_s, floor)
+    if not (dense.realtime_factor_median > 0 and floor_x > 0 and floor.steps_per_run > 0
+            and share_pct > 0):
+        return math.nan
+    rest_s = dense.duration_s / dense.realtime_factor_median - floor.glue_per_run_s
+    return (dense.duration_s / (share_pct / 100.0 * floor_x) - rest_s) / floor.steps_per_run * 1e6
 
 
 def measured_targets(dense: DenseRunFigures | None, floor: FloorFigures | None,

@@ -14,10 +14,13 @@ module imports nothing but the standard library at its top; the third-party modu
 then the scenario processes' preparation (:func:`suite.exec.prepare.prepare_process`),
 are done inside :func:`main`, timed.
 
-The three timers wrap, for the probe's process only, the calls they time
+The timers wrap, for the probe's process only, the calls they time
 (:func:`install_timers`): the C/GMRES continuation kernel
 (``CgmresOuter._continue``), SUMO's step with its collision query
-(``SumoWorld._advance``) and the runner's loop (``suite.run.runner.run_loop``).
+(``SumoWorld._advance``), the runner's loop (``suite.run.runner.run_loop``) and, inside
+it, each of the loop's stages (:func:`time_stages`: ``behaviour_s``, ``controller_s``,
+``dynamics_s``, ``world_s``, ``monitor_s``, ``recorder_s``), so that the Python between
+the kernel and SUMO's step can be told apart stage by stage.
 """
 
 from __future__ import annotations
@@ -54,8 +57,40 @@ def _timed(fn: Callable[..., Any], acc: dict[str, float], key: str) -> Callable[
     return wrapper
 
 
+# the loop's stages each timed on its own (:func:`time_stages`), keys of ``acc``
+STAGE_KEYS = ("behaviour_s", "controller_s", "dynamics_s", "world_s", "monitor_s",
+              "recorder_s")
+
+
+def _time_method(obj: Any, name: str, acc: dict[str, float], key: str) -> None:
+    """``obj.name`` replaced, on this instance only, by the timed bound method."""
+    setattr(obj, name, _timed(getattr(obj, name), acc, key))
+
+
+def time_stages(stages: Any, acc: dict[str, float]) -> None:
+    """Time each stage of one run's :class:`suite.run.loop.Stages` into ``acc``
+    (:data:`STAGE_KEYS`), by wrapping the instances' own methods the loop calls: the
+    behaviour's ``decide``, the controller's ``step``, the ego dynamics' ``start`` and
+    ``advance``, the world's ``start`` and ``step`` inside them (when the dynamics have a
+    world), the safety monitor's ``check`` and the recorder's ``record``. The last
+    decision moved on between two decisions (``Decision.ahead``) is timed with the
+    behaviour by :func:`install_timers`, on its class."""
+    _time_method(stages.behaviour, "decide", acc, "behaviour_s")
+    _time_method(stages.controller, "step", acc, "controller_s")
+    for name in ("start", "advance"):
+        _time_method(stages.dynamics, name, acc, "dynamics_s")
+    world = getattr(stages.dynamics, "world", None)
+    if world is not None:
+        for name in ("start", "step"):
+            _time_method(world, name, acc, "world_s")
+    _time_method(stages.monitor, "check", acc, "monitor_s")
+    _time_method(stages.recorder, "record", acc, "recorder_s")
+
+
 def install_timers(acc: dict[str, float]) -> None:
-    """Wrap the C/GMRES kernel calls, SUMO's step and the loop with timers into ``acc``."""
+    """Wrap the C/GMRES kernel calls, SUMO's step and the loop with timers into ``acc``,
+    and every run's stages (:func:`time_stages`)."""
+    import controllers.behaviour.types as behaviour_types
     import controllers.two_loop.outer.cgmres as cgmres
     import suite.run.runner as runner
     import suite.world.sumo as sumo
@@ -64,7 +99,15 @@ def install_timers(acc: dict[str, float]) -> None:
         cgmres.CgmresOuter._continue, acc, "kernel_s")
     sumo.SumoWorld._advance = _timed(  # type: ignore[method-assign]
         sumo.SumoWorld._advance, acc, "sumo_s")
-    runner.run_loop = _timed(runner.run_loop, acc, "loop_s")  # type: ignore[attr-defined]
+    behaviour_types.Decision.ahead = _timed(  # type: ignore[method-assign]
+        behaviour_types.Decision.ahead, acc, "behaviour_s")
+    loop = _timed(runner.run_loop, acc, "loop_s")  # type: ignore[attr-defined]
+
+    def staged_loop(stages: Any, n_steps: int) -> str:
+        time_stages(stages, acc)
+        return str(loop(stages, n_steps))
+
+    runner.run_loop = staged_loop  # type: ignore[attr-defined]
 
 
 def _run_in_child(acc: dict[str, float], scenario: Any, out: Path) -> dict[str, Any]:
@@ -111,7 +154,7 @@ def main(catalog: str, out: str) -> dict[str, Any]:
 
     from suite.catalog import load_catalog
 
-    acc = {"kernel_s": 0.0, "sumo_s": 0.0, "loop_s": 0.0}
+    acc = dict.fromkeys(("kernel_s", "sumo_s", "loop_s", *STAGE_KEYS), 0.0)
     install_timers(acc)
     runs = [_run_in_child(acc, scenario, Path(out) / str(k))
             for k, scenario in enumerate(load_catalog(Path(catalog)).scenarios)]

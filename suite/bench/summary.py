@@ -10,8 +10,12 @@ from suite.bench.figures import (
     DenseRunFigures,
     FloorFigures,
     floor_realtime_factor,
+    glue_budget_per_step_us,
     share_of_floor_pct,
+    share_of_floor_without_pct,
 )
+from suite.bench.floor import GLUE_STAGES
+from suite.bench.targets import target
 
 if TYPE_CHECKING:
     from suite.bench import BenchResult
@@ -85,8 +89,32 @@ def dense_lines(d: DenseRunFigures, fl: FloorFigures) -> list[str]:
         f"  behaviour + controller step, worst run: p99 {d.step_p99_ms_worst:.3f} ms "
         f"({d.step_p99_worst_run}), max {d.step_max_ms_worst:.3f} ms ({d.step_max_worst_run}); "
         f"p99 over the run's own C/GMRES outer update p99: worst "
-        f"x{d.step_p99_over_outer_p99_worst:.2f} ({d.step_p99_over_outer_p99_worst_run})",
+        f"x{d.step_p99_over_outer_p99_worst:.2f} ({d.step_p99_over_outer_p99_worst_run}); "
+        f"the controller's step alone (no behaviour): worst "
+        f"x{d.controller_p99_over_outer_p99_worst:.2f} "
+        f"({d.controller_p99_over_outer_p99_worst_run})",
+        *glue_stage_lines(d, fl),
     ]
+
+
+def glue_stage_lines(d: DenseRunFigures, fl: FloorFigures) -> list[str]:
+    """The glue split by stage (the floor study's stage timers), each with the share of
+    the floor one run would reach were that stage free, and the glue a step may cost for
+    the one-run target to hold (the runs' build and the floor's parts as measured)."""
+    if not fl.glue_stages_per_run_s or not fl.steps_per_run > 0:
+        return []
+    steps = fl.steps_per_run
+    lines = ["  the glue by stage, a control step (floor study), and the share of the floor "
+             "one run would reach were that stage free:"]
+    for (name, what), per_run_s in zip(GLUE_STAGES, fl.glue_stages_per_run_s, strict=True):
+        lines.append(f"    {per_run_s / steps * 1e6:6.1f} us  {name:<10} -> "
+                     f"{share_of_floor_without_pct(d, fl, per_run_s):3.0f} %  ({what})")
+    goal = target("one_run_share_of_floor").target_value
+    lines.append(f"    all of it free -> "
+                 f"{share_of_floor_without_pct(d, fl, fl.glue_per_run_s):.0f} %; for {goal:g} % "
+                 f"of the floor the glue may cost {glue_budget_per_step_us(d, fl, goal):.0f} us "
+                 f"a step (today {fl.glue_per_step_us:.0f} us)")
+    return lines
 
 
 def command_lines(c: CommandFigures, fl: FloorFigures | None, cpus: int | None,
