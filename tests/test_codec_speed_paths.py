@@ -30,7 +30,7 @@ from reports.record import RUN_JSON, RunInfo, RunOutcome, Verdict, iter_run_dirs
 from reports.record.codec import RecordError, decode_dataclass, to_plain
 from reports.record.columns import NeighbourColumns, Trace
 from reports.record.meta import ReplayHandover, ReplaySummary, SsmSummary, SumoCollision
-from reports.record.run import check_run_files
+from reports.record.run import DamagedRun, check_run_files
 from reports.record.verdict import BoundaryCrossing, MetricValue
 
 PATH = "night/run_x/run.json"
@@ -104,7 +104,8 @@ def test_a_union_without_null_refuses_null() -> None:
     base = {"name": "a", "count": 0, "inner": {"label": "i"}}
     assert decode_dataclass(Outer, {**base, "either": "s"}, PATH).either == "s"
     assert decode_dataclass(Outer, {**base, "either": 4}, PATH).either == 4
-    for value in (None, 1.5, True, []):
+    values: tuple[object, ...] = (None, 1.5, True, [])
+    for value in values:
         err = _error(Outer, {**base, "either": value})
         assert err.key == "either" and err.got == value
 
@@ -344,13 +345,13 @@ def test_an_older_runs_parquet_files_are_checked_as_before(tmp_path: Path) -> No
     run = tmp_path / "run"
     run.mkdir()
     check_run_files(run, (), judged_steps=False)  # nothing there, nothing asked for
-    with pytest.raises(RecordError) as info:
+    with pytest.raises(DamagedRun) as info:
         check_run_files(run, (), judged_steps=True)
     assert info.value.problems == ("trace.parquet: missing", "series.parquet: missing")
     (run / "trace.parquet").mkdir()  # not a file
     (run / "series.parquet").write_bytes(b"not parquet")
     os.symlink(run / "gone.parquet", run / "neighbours.parquet")  # a broken link
-    with pytest.raises(RecordError) as info:
+    with pytest.raises(DamagedRun) as info:
         check_run_files(run, (), judged_steps=True)
     problems = info.value.problems
     assert problems[0] == "trace.parquet: missing" and len(problems) == 2
