@@ -4,6 +4,7 @@ whole quick bench: tests/test_bench_targets.py."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -220,6 +221,8 @@ def test_the_glue_splits_by_stage_known_answers() -> None:
                 dict(world_s=0.2),  # SUMO's step beyond the world's
                 dict(world_s=0.7),  # the world's step beyond the dynamics'
                 dict(recorder_s=0.5),  # the stages beyond the loop
+                dict(wall_s=1.5),  # the loop beyond wall_s
+                dict(wall_s=2.6),  # wall_s beyond the run
                 dict(monitor_s=-0.01)):
         with pytest.raises(ValueError):
             FloorRun("c", "pass", **{**good, **bad})  # type: ignore[arg-type]
@@ -243,6 +246,15 @@ def test_share_of_the_floor_were_a_stage_free() -> None:
     assert glue_budget_per_step_us(d, fl, 70.0) == pytest.approx((40 / 35 - 1.0) / 2000 * 1e6)
     assert glue_budget_per_step_us(d, fl, 40.0) == pytest.approx(500.0)  # today's share
     assert len(glue_stage_lines(d, fl)) == 1 + len(GLUE_STAGES) + 1
+    # from the floor study's own runs' wall_s (1.9 s) where it has them: free of the
+    # 0.4 s stage 1.5 s, 53 %; of all the glue 0.9 s, (0.5 + 0.3) / 0.9 = 89 %, never
+    # above 100 % (the build is left); the target leaves 40 / 35 - 0.9 s a run
+    fl_own = dataclasses.replace(fl, wall_per_run_s=1.9)
+    assert share_of_floor_without_pct(d, fl_own, 0.4) == pytest.approx(100.0 * (40 / 1.5) / 50)
+    assert share_of_floor_without_pct(d, fl_own, fl_own.glue_per_run_s) == pytest.approx(
+        100.0 * 0.8 / 0.9)
+    assert glue_budget_per_step_us(d, fl_own, 70.0) == pytest.approx(
+        (40 / 35 - 0.9) / 2000 * 1e6)
     with pytest.raises(ValueError):
         FloorFigures(runs=2, glue_per_step_us=500.0, glue_per_run_s=1.0, kernel_per_run_s=0.5,
                      sumo_per_run_s=0.3, loop_per_run_s=1.8, steps_per_run=2000.0,
@@ -273,6 +285,7 @@ def test_the_floor_study_times_real_runs(tmp_path: Path) -> None:
                            if k not in ("glue_s", "glue_per_step_us")}).staged
         assert min(r[k] for k in ("behaviour_s", "controller_s", "dynamics_s", "world_s",
                                   "monitor_s", "recorder_s")) > 0.0
+        assert r["loop_s"] < r["wall_s"] < r["run_s"]
     for r, split in zip(floor["runs"], floor["glue_stages_s"], strict=True):
         assert list(split) == [name for name, _ in GLUE_STAGES]
         assert sum(split.values()) == pytest.approx(r["glue_s"])

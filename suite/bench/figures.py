@@ -111,6 +111,8 @@ class FloorFigures:
     preload_s: float
     # the glue per run split as suite.bench.floor.GLUE_STAGES [s] (() when not timed)
     glue_stages_per_run_s: tuple[float, ...] = ()
+    # the floor study's runs' own results.csv wall_s, mean [s] (NaN: not recorded)
+    wall_per_run_s: float = math.nan
 
     def __post_init__(self) -> None:
         if self.runs < 1:
@@ -141,7 +143,8 @@ class FloorFigures:
                    steps_per_run=sum(r.steps for r in runs) / n,
                    third_party_import_s=float(floor["third_party_import_s"]),
                    preload_s=float(floor.get("preload_s", math.nan)),
-                   glue_stages_per_run_s=split)
+                   glue_stages_per_run_s=split,
+                   wall_per_run_s=sum(r.wall_s for r in runs) / n)
 
 
 @dataclass(frozen=True)
@@ -201,29 +204,41 @@ def share_of_floor_pct(realtime_factor: float, floor_factor: float) -> float:
     return 100.0 * realtime_factor / floor_factor
 
 
+def _floor_run_wall_s(dense: DenseRunFigures, floor: FloorFigures) -> float:
+    """The wall time [s] of one run the what-if figures start from: the floor study's own
+    runs' mean ``wall_s`` (the same processes the glue and the floor were timed in, so
+    the figures add up), else the dense runs' median (NaN without either)."""
+    if math.isfinite(floor.wall_per_run_s) and floor.wall_per_run_s > 0:
+        return floor.wall_per_run_s
+    if dense.realtime_factor_median > 0:
+        return dense.duration_s / dense.realtime_factor_median
+    return math.nan
+
+
 def share_of_floor_without_pct(dense: DenseRunFigures, floor: FloorFigures,
                                 saved_per_run_s: float) -> float:
     """The one-run share of the floor [%] were ``saved_per_run_s`` [s] of each run free:
-    the dense runs' median wall time (their duration over the median real-time factor)
-    less the saving, as a share of the floor (NaN when nothing would be left)."""
+    a run's wall time (:func:`_floor_run_wall_s`) less the saving, as a share of the
+    floor (NaN when nothing would be left)."""
     floor_x = floor_realtime_factor(dense.duration_s, floor)
-    if not (dense.realtime_factor_median > 0 and math.isfinite(saved_per_run_s)):
+    wall_s = _floor_run_wall_s(dense, floor) - saved_per_run_s
+    if not (math.isfinite(wall_s) and wall_s > 0):
         return math.nan
-    wall_s = dense.duration_s / dense.realtime_factor_median - saved_per_run_s
-    return share_of_floor_pct(dense.duration_s / wall_s, floor_x) if wall_s > 0 else math.nan
+    return share_of_floor_pct(dense.duration_s / wall_s, floor_x)
 
 
 def glue_budget_per_step_us(dense: DenseRunFigures, floor: FloorFigures,
                             share_pct: float) -> float:
     """The glue a control step may cost [us] for one run to reach ``share_pct`` [%] of
-    the floor, the rest of the run (its build, the kernel, SUMO's step: the dense runs'
-    median wall time less the floor study's glue) as measured (NaN without the figures;
-    negative when the rest alone misses it)."""
+    the floor, the rest of the run (its build, the kernel, SUMO's step: a run's wall
+    time, :func:`_floor_run_wall_s`, less the floor study's glue) as measured (NaN
+    without the figures; negative when the rest alone misses it)."""
     floor_x = floor_realtime_factor(dense.duration_s, floor)
-    if not (dense.realtime_factor_median > 0 and floor_x > 0 and floor.steps_per_run > 0
+    wall_s = _floor_run_wall_s(dense, floor)
+    if not (math.isfinite(wall_s) and floor_x > 0 and floor.steps_per_run > 0
             and share_pct > 0):
         return math.nan
-    rest_s = dense.duration_s / dense.realtime_factor_median - floor.glue_per_run_s
+    rest_s = wall_s - floor.glue_per_run_s
     return (dense.duration_s / (share_pct / 100.0 * floor_x) - rest_s) / floor.steps_per_run * 1e6
 
 

@@ -51,7 +51,8 @@ class FloorRun:
     the loop's stages each timed whole (NaN: not timed): the behaviour (its decisions
     and the last decision moved on between them), the controller's step (the kernel
     inside), the ego dynamics (the world's step inside), the world's step (SUMO's step
-    inside), the safety monitor, the recorder."""
+    inside), the safety monitor, the recorder; ``wall_s`` the run's results.csv
+    ``wall_s`` (its build and loop; NaN: not recorded)."""
 
     scenario: str
     status: str
@@ -66,12 +67,16 @@ class FloorRun:
     world_s: float = math.nan
     monitor_s: float = math.nan
     recorder_s: float = math.nan
+    wall_s: float = math.nan
 
     def __post_init__(self) -> None:
         if min(self.run_s, self.loop_s, self.kernel_s, self.sumo_s) < 0:
             raise ValueError(f"{self.scenario}: negative time")
         if self.steps < 0:
             raise ValueError(f"{self.scenario}: steps must be >= 0, got {self.steps}")
+        if self.loop_s > self.wall_s + 1e-9 or self.wall_s > self.run_s + 1e-9:
+            raise ValueError(f"{self.scenario}: the loop ({self.loop_s} s) must fit in wall_s "
+                             f"({self.wall_s} s), wall_s in the run ({self.run_s} s)")
         if self.kernel_s + self.sumo_s > self.loop_s + 1e-9 or self.loop_s > self.run_s + 1e-9:
             raise ValueError(f"{self.scenario}: kernel + SUMO ({self.kernel_s + self.sumo_s} s) "
                              f"must fit in the loop ({self.loop_s} s), the loop in the run "

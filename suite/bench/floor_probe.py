@@ -5,8 +5,9 @@ Run as a script in a fresh interpreter, from the repository root::
     python suite/bench/floor_probe.py CATALOG OUT
 
 and prints one JSON line: ``third_party_import_s``, ``preload_s`` and ``runs`` (one
-row per scenario: ``run_s``, ``loop_s``, ``kernel_s``, ``sumo_s``, ``scenario``,
-``status``, ``steps``), as :mod:`suite.bench.floor`'s docstring describes.
+row per scenario: ``run_s``, ``wall_s`` (results.csv's: build and loop), ``loop_s``,
+``kernel_s``, ``sumo_s``, the stage times, ``scenario``, ``status``, ``steps``), as
+:mod:`suite.bench.floor`'s docstring describes.
 
 It is run as a file, not with ``python -m``: ``-m`` would import ``suite`` and
 ``suite.bench`` (and numpy with them) before the third-party imports are timed. So this
@@ -122,7 +123,8 @@ def _run_in_child(acc: dict[str, float], scenario: Any, out: Path) -> dict[str, 
         t = time.perf_counter()
         record = runner.run_scenario(scenario, out, RunOptions())
         child_row = dict(acc, run_s=time.perf_counter() - t, scenario=scenario.name,
-                         status=record.status, steps=record.outcome.steps)
+                         status=record.status, steps=record.outcome.steps,
+                         wall_s=record.outcome.wall_s)
         os.write(write, json.dumps(child_row).encode())
         os._exit(0)
     os.close(write)
