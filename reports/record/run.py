@@ -38,7 +38,7 @@ naming the file), whatever its stored verdict says. A run written before run.jso
 listed its files is checked by reading its parquet files whole instead
 (:func:`check_run_files`). SHA-256 costs ~1-2 ms per MB on a 2-core VM; a 24 s run's
 files are 1.2 MB (3.9 MB with its Rerun log): a few ms per run, several times decoding
-its run.json (:func:`reports.tables.collect_runs` reads directories on threads).
+its run.json, so a whole output directory's read is mostly these checksums.
 
 Headings are radians counter-clockwise from +X; neighbours' positions are box centres,
 the ego's is its CG (its box centre is ``cg_to_box_centre_m`` ahead).
@@ -63,7 +63,7 @@ import stat
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -77,7 +77,7 @@ from reports.record.codec import (
     to_plain,
     write_json_atomic,
 )
-from reports.record.columns import TRACE_GROUPS, ColumnGroup, NeighbourColumns, SeriesColumns, Trace
+from reports.record.columns import NeighbourColumns, SeriesColumns, Trace
 from reports.record.meta import END_OK, FileDigest, RunInfo, RunOutcome
 from reports.record.road import RoadRecord
 from reports.record.verdict import Verdict
@@ -370,10 +370,10 @@ def load_run(run_dir: str | Path, *, trace: bool = True, neighbours: bool = True
     road_record = RoadRecord.from_plain(read_json(road_path), road_path) \
         if road and road_path.is_file() else RoadRecord()
     frame = _read_parquet(run_dir / TRACE) if trace else None
-    tr = Trace.from_frame(frame) if frame is not None else _empty_trace()
+    tr = Trace.from_frame(frame) if frame is not None else Trace.empty()
     nb_frame = _read_parquet(run_dir / NEIGHBOURS) if neighbours else None
     nb = NeighbourColumns.from_frame(nb_frame) if nb_frame is not None \
-        else _no_rows(NeighbourColumns)
+        else NeighbourColumns.no_rows()
     se_frame = _read_parquet(run_dir / SERIES) if series else None
     se = SeriesColumns.from_frame(se_frame) if se_frame is not None else None
     ca = ControllerArrays()
@@ -395,27 +395,6 @@ def load_run(run_dir: str | Path, *, trace: bool = True, neighbours: bool = True
             raise RecordError(arr_path, "", "a readable .npz file", str(exc)) from exc
     return RunRecord(info=info, outcome=outcome, road=road_record, trace=tr, neighbours=nb,
                      arrays=ca, verdict=verdict, series=se, run_dir=run_dir, files=digests)
-
-
-# zero-length columns made once, by group (Trace: its keys); none can be written into
-_ZERO_LENGTH: dict[type, dict[str, np.ndarray]] = {}
-_G = TypeVar("_G", bound=ColumnGroup)
-
-
-def _no_rows(group: type[_G]) -> _G:
-    """``group.allocate(0)``, over zero-length columns made once (1-2 us, not 10-15)."""
-    if group not in _ZERO_LENGTH:
-        _ZERO_LENGTH[group] = dict(group.allocate(0).columns())
-    return group(**_ZERO_LENGTH[group])
-
-
-def _empty_trace() -> Trace:
-    """``Trace.empty()`` of :func:`_no_rows` groups: 5 us, not 50 (a tenth of a run's read)."""
-    if Trace not in _ZERO_LENGTH:
-        empty = Trace.empty()
-        _ZERO_LENGTH[Trace] = {"step": empty.step, "t_s": empty.t_s}
-    groups = {name: _no_rows(g) for name, g in TRACE_GROUPS.items()}
-    return Trace(**_ZERO_LENGTH[Trace], extra={}, **groups)  # type: ignore[arg-type]
 
 
 def staging_dir(out_dir: Path, name: str) -> Path:
