@@ -7,17 +7,16 @@ not read, and the failure modes are the typed failures' metric names."""
 from __future__ import annotations
 
 import datetime as _dt
-import gc
 import hashlib
 import json
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from reports.collector import collector_paused
 from reports.expectation import Xfail, xfail_of
 from reports.history.schema import (
     METRIC_NAME,
@@ -232,22 +231,6 @@ def _metric_matrix(frame: pd.DataFrame) -> tuple[tuple[str, ...], np.ndarray]:
         return (), np.zeros((len(frame), 0))
     values = frame[list(names)].apply(pd.to_numeric, errors="coerce")
     return names, values.to_numpy(dtype=np.float64, na_value=np.nan)
-
-
-@contextmanager
-def collector_paused() -> Iterator[None]:
-    """The cyclic garbage collector paused within, enabled again after if it was before.
-    Reading a night's 2 000 runs for their verdicts makes ~200 000 records that all
-    stay, and no cycle: each pass of the collector walked them again (0.25 s of the
-    read; one pass after it: 0.07 s), as over the imports of
-    :func:`suite.exec.prepare.prepare_process`."""
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if enabled:
-            gc.enable()
 
 
 def read_night(out_dir: str | Path, night_id: str | None = None,

@@ -26,6 +26,7 @@ from typing import Protocol
 from controllers.behaviour.protocol import Behaviour
 from controllers.behaviour.types import Decision, LaneContext
 from controllers.protocol import Controller, Observation
+from reports.collector import collector_paused
 from suite.run.dynamics import EgoDynamics
 from suite.run.ego import EgoState
 from suite.run.recorder import Recorder, StepTiming
@@ -76,13 +77,8 @@ def run_loop(stages: Stages, n_steps: int) -> str:
     ~0.6 ms). So that a long run cannot pile up cycles, the youngest generation is
     collected every :data:`YOUNG_COLLECT_STEPS` steps (between two steps, outside their
     timed part); the rest after the run."""
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
+    with collector_paused():
         return _steps(stages, n_steps)
-    finally:
-        if was_enabled:
-            gc.enable()
 
 
 def _steps(stages: Stages, n_steps: int) -> str:
