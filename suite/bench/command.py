@@ -301,8 +301,7 @@ def _read_runs(out: Path) -> tuple[list[RunFigures], dict[str, StepStats]]:
         both = np.asarray(cols["controller_s"], dtype=np.float64)
         dyn = np.asarray(cols["sumo_s"], dtype=np.float64)
         alone = both - beh
-        finite = alone[np.isfinite(alone)]
-        controller_p99_ms = float(np.percentile(finite, 99)) * 1e3 if finite.size else math.nan
+        controller_p99_ms = StepStats.of(alone).p99_us * 1e-3
         pools["controller_step"].append(alone)
         pools["behaviour_and_controller"].append(both)
         pools["behaviour"].append(beh)

@@ -38,6 +38,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from suite.bench.floor_probe import STAGE_KEYS
+
 ROOT = Path(__file__).resolve().parents[2]
 
 # The measuring process, a script run in a fresh interpreter (its docstring says why not
@@ -104,9 +106,7 @@ class FloorRun:
     @property
     def staged(self) -> bool:
         """Whether the loop's stages were timed (every stage time finite)."""
-        return all(math.isfinite(v) for v in (self.behaviour_s, self.controller_s,
-                                               self.dynamics_s, self.world_s, self.monitor_s,
-                                               self.recorder_s))
+        return all(math.isfinite(getattr(self, key)) for key in STAGE_KEYS)
 
     @property
     def glue_s(self) -> float:
